@@ -1,0 +1,80 @@
+"""The ``coastforge`` command. Subcommands live one per module and are imported only when run,
+so ``coastforge --help`` stays instant. A ``CoastforgeError`` is printed as a one-line error
+(no traceback) with exit code 2."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+from .. import __version__
+from ..errors import CoastforgeError
+
+# name -> (module, attribute, one-line help). Kept here so listing commands imports nothing.
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "generate": ("generate", "generate", "Run the whole pipeline: image in, scene (and exports) out."),
+    "synth": ("synth", "synth", "Synthesize a ground-truth coastal level and render its aerial images."),
+    "evaluate": ("evaluate", "evaluate", "Compare a generated scene against a truth scene (paper metrics)."),
+    "benchmark": ("benchmark", "benchmark", "Run the synthetic benchmark and print the paper's table."),
+    "segment": ("segment", "segment", "Segment an image into the eight terrain classes."),
+    "clean": ("segment", "clean", "Remove boats and vehicles from an image by inpainting."),
+    "terrain": ("terrain", "terrain", "Estimate a height map (land and bathymetry) for a scene."),
+    "detect": ("detect", "detect", "Detect boats, vehicles and piers as oriented boxes with heading."),
+    "library": ("library", "library", "Build and query asset libraries (render, embed, FAISS index)."),
+    "export": ("export", "export", "Export a scene to ue5, holoocean, gltf, usd, sdf."),
+    "report": ("report", "report", "Build the HTML report of a generated scene."),
+    "render": ("render", "render", "Render a scene from above (orthographic)."),
+    "batch": ("batch", "batch", "Generate many scenes on a Dask cluster."),
+    "backends": ("backends", "backends", "List every stage's backends and whether each is usable here."),
+}
+
+
+class LazyGroup(click.Group):
+    def list_commands(self, ctx):
+        return [n for n, (mod, _a, _h) in COMMANDS.items() if importlib.util.find_spec(f"{__name__}.{mod}")]
+
+    def get_command(self, ctx, name):
+        if name not in COMMANDS:
+            return None
+        mod, attr, _h = COMMANDS[name]
+        try:
+            module = importlib.import_module(f"{__name__}.{mod}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"{__name__}.{mod}":
+                return None
+            raise
+        return getattr(module, attr)
+
+    def format_commands(self, ctx, formatter):
+        rows = [(n, COMMANDS[n][2]) for n in self.list_commands(ctx)]
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except CoastforgeError as exc:
+            click.echo(f"Error: {exc}", err=True)
+            ctx.exit(2)
+        except KeyboardInterrupt:
+            click.echo("Interrupted; files already written are complete and kept.", err=True)
+            ctx.exit(130)
+
+
+import importlib.util  # noqa: E402  (used by LazyGroup.list_commands)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="coastforge")
+def cli() -> None:
+    """coastforge: one overhead image of a coastline in, a marine-robotics simulation environment out.
+
+    Start with `coastforge generate IMAGE --gsd 0.2 --out DIR`; every command has --help.
+    """
+
+
+def main(argv: list[str] | None = None) -> None:
+    cli.main(args=argv if argv is not None else sys.argv[1:], prog_name="coastforge")

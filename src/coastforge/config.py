@@ -1,0 +1,248 @@
+"""One typed config: dataclass defaults ← a named TOML preset ← a user TOML file ← ``--set key=value``.
+
+Each stage owns one section. ``--set terrain.max_depth_m=12`` parses the value as TOML (so numbers,
+booleans, lists and quoted strings work) and checks it against the field's type.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import typing
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+from .errors import ConfigError
+
+
+@dataclass(frozen=True)
+class IOConfig:
+    max_pixels: int = 1_100_000_000  # larger images are refused as decompression bombs (~33k x 33k)
+    gsd_tolerance: float = 0.01  # relative disagreement allowed between --gsd, --size-m and a georeference
+
+
+@dataclass(frozen=True)
+class SegmentConfig:
+    backend: str = "classical"
+    smooth_px: int = 3  # majority filter radius in pixels
+    min_region_m2: float = 4.0  # smaller islands are merged into their surroundings
+    weight_blur_m: float = 1.0  # softened borders of the paint-layer weight maps
+    superpixel_m: float = 2.0  # SLIC superpixel size
+    self_training: bool = True
+
+
+@dataclass(frozen=True)
+class TerrainConfig:
+    backend: str = "default"
+    max_depth_m: float = 8.0  # depth far from shore
+    depth_scale_m: float = 40.0  # distance over which the seabed approaches max depth
+    berth_depth_m: float = 4.0  # depth in front of quay walls
+    quay_height_m: float = 1.2  # top of a quay above the water level
+    d50_mm: float = 0.3  # sand grain size for Dean's profile A = 0.21 D50^0.48
+    beach_height_m: float = 1.5  # height of the berm behind a beach
+    intertidal_m: float = 0.0  # beach band allowed below the water level (tidal flats)
+    revetment_slope: float = 0.6  # rise/run of rock revetments
+    bank_slope: float = 0.15  # natural banks (grass, dirt, trees)
+    land_rise_m: float = 3.0  # gentle rise of land far from the shore
+    land_rise_scale_m: float = 150.0
+    noise_m: float = 0.15  # small-scale natural variation (not on paved areas)
+    seam_m: float = 20.0  # DEM blending band
+    optical_depth: bool = False  # Stumpf log-ratio modulation in clear shallow water
+
+
+@dataclass(frozen=True)
+class DetectConfig:
+    backend: str = "classical"
+    min_boat_length_m: float = 2.0
+    max_boat_length_m: float = 60.0
+    min_vehicle_length_m: float = 3.0
+    max_vehicle_length_m: float = 14.0
+    min_score: float = 0.3
+    slice_px: int = 1024
+    slice_overlap_px: int = 128
+    nms_iou: float = 0.3
+
+
+@dataclass(frozen=True)
+class LibraryConfig:
+    embedder: str = "default"
+    view_gsd_m: float = 0.05  # metres per pixel of the library's top-down views
+    view_size_px: int = 256
+    lightings: int = 3
+    backgrounds: tuple[str, ...] = ("water", "ground")
+
+
+@dataclass(frozen=True)
+class MatchConfig:
+    mode: str = "best"  # best | sample
+    k: int = 10
+    size_weight: float = 0.5  # how much the metric size counts against appearance
+    sample_margin: float = 0.03  # sample among candidates within this similarity of the best
+    scale_mode: str = "uniform"  # uniform | per_axis
+    scale_min: float = 0.5
+    scale_max: float = 2.0
+
+
+@dataclass(frozen=True)
+class PierConfig:
+    max_gap_m: float = 6.0  # a pier end this close to land or a walkway is extended to reach it
+    deck_height_m: float = 0.6
+
+
+@dataclass(frozen=True)
+class VegetationConfig:
+    enabled: bool = True
+    tree_density_per_100m2: float = 1.2
+    bush_density_per_100m2: float = 0.8
+    grass_density_per_100m2: float = 2.0
+    rock_density_per_100m2: float = 1.0
+    seaweed_density_per_100m2: float = 0.3
+    max_slope_deg_trees: float = 25.0
+    min_spacing_m: float = 2.0
+    max_instances: int = 50_000
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    sun_azimuth_deg: float = 135.0
+    sun_elevation_deg: float = 55.0
+    shadow_softness: float = 0.6
+    water_turbidity: float = 0.4
+    glint: float = 0.3
+
+
+@dataclass(frozen=True)
+class ExportConfig:
+    formats: tuple[str, ...] = ("ue5", "holoocean", "gltf")
+    template_level: str = "/Game/HoloOcean/Maps/CoastforgeTemplate"
+    package_name: str = "Ocean"
+    gltf_max_vertices: int = 250_000
+    ue_max_size: int = 8129
+
+
+@dataclass(frozen=True)
+class Config:
+    seed: int = 0
+    io: IOConfig = field(default_factory=IOConfig)
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    terrain: TerrainConfig = field(default_factory=TerrainConfig)
+    detect: DetectConfig = field(default_factory=DetectConfig)
+    library: LibraryConfig = field(default_factory=LibraryConfig)
+    match: MatchConfig = field(default_factory=MatchConfig)
+    piers: PierConfig = field(default_factory=PierConfig)
+    vegetation: VegetationConfig = field(default_factory=VegetationConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    export: ExportConfig = field(default_factory=ExportConfig)
+
+    def to_dict(self) -> dict[str, Any]:
+        return _to_plain(dataclasses.asdict(self))
+
+
+def _to_plain(v: Any) -> Any:
+    if isinstance(v, dict):
+        return {k: _to_plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_to_plain(x) for x in v]
+    return v
+
+
+def _coerce(value: Any, tp: Any, key: str) -> Any:
+    origin = typing.get_origin(tp)
+    if tp is bool:
+        if isinstance(value, bool):
+            return value
+    elif tp is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+    elif tp is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+    elif tp is str:
+        if isinstance(value, str):
+            return value
+    elif origin is tuple:
+        if isinstance(value, (list, tuple)):
+            (item_tp, *_rest) = typing.get_args(tp)
+            return tuple(_coerce(v, item_tp, key) for v in value)
+    else:  # pragma: no cover - every field type is one of the above
+        return value
+    tname = getattr(tp, "__name__", str(tp))
+    raise ConfigError(f"config key {key} = {value!r} must be of type {tname}")
+
+
+def _apply(cls: type, base: Any, data: dict, prefix: str) -> Any:
+    if not isinstance(data, dict):
+        raise ConfigError(f"config section {prefix or '(top)'} must be a table, got {data!r}")
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in fields(cls)}
+    changes = {}
+    for k, v in data.items():
+        key = f"{prefix}{k}"
+        if k not in names:
+            raise ConfigError(f"unknown config key {key!r}; valid keys here: {', '.join(sorted(names))}")
+        tp = hints[k]
+        if dataclasses.is_dataclass(tp):
+            changes[k] = _apply(tp, getattr(base, k), v, key + ".")
+        else:
+            changes[k] = _coerce(v, tp, key)
+    return dataclasses.replace(base, **changes)
+
+
+def preset_names() -> list[str]:
+    return sorted(p.name[:-5] for p in resources.files("coastforge.presets").iterdir() if p.name.endswith(".toml"))
+
+
+def _read_toml(text: str, where: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{where} is not valid TOML: {exc}") from exc
+
+
+def parse_set(item: str) -> dict:
+    """``a.b=value`` → ``{"a": {"b": value}}`` with the value parsed as TOML (bare words are strings)."""
+    if "=" not in item:
+        raise ConfigError(f"--set {item!r} must look like section.key=value (e.g. terrain.max_depth_m=12)")
+    key, raw = item.split("=", 1)
+    key = key.strip()
+    if not key:
+        raise ConfigError(f"--set {item!r} has an empty key")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    out: dict = {}
+    cur = out
+    parts = key.split(".")
+    for p in parts[:-1]:
+        cur = cur.setdefault(p, {})
+    cur[parts[-1]] = value
+    return out
+
+
+def load_config(preset: str = "default", path: str | Path | None = None, sets: list[str] | tuple[str, ...] = (),
+                seed: int | None = None) -> Config:
+    """Build the config from a named preset, an optional TOML file, ``--set`` items and ``--seed``."""
+    cfg = Config()
+    names = preset_names()
+    if preset not in names:
+        raise ConfigError(f"unknown preset {preset!r}; presets: {', '.join(names)}")
+    text = resources.files("coastforge.presets").joinpath(f"{preset}.toml").read_text(encoding="utf-8")
+    cfg = _apply(Config, cfg, _read_toml(text, f"preset {preset}"), "")
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError(f"config file {p} does not exist; pass an existing TOML file with --config")
+        cfg = _apply(Config, cfg, _read_toml(p.read_text(encoding="utf-8"), str(p)), "")
+    for item in sets:
+        cfg = _apply(Config, cfg, parse_set(item), "")
+    if seed is not None:
+        cfg = dataclasses.replace(cfg, seed=int(seed))
+    return cfg

@@ -1,0 +1,366 @@
+"""The scene file (DESIGN.md §3): the contract between stages, exporters and evaluation.
+
+``scene.json`` beside its rasters (``terrain/height.tif`` float32 metres, ``terrain/classes.png``
+uint8 class ids) and an optional ``vegetation.csv``. ``load_scene`` → ``save_scene`` round-trips
+exactly. Validation names the bad field and its value.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .classes import N_CLASSES, OBJECT_CATEGORIES
+from .errors import SceneFormatError
+from .fsio import atomic_write_text, read_png, write_geotiff, write_png
+from .types import Grid
+
+FORMAT = "coastforge.scene/1"
+SOURCES = ("detection", "pier", "synthetic", "manual")
+VEG_COLUMNS = ("asset_id", "category", "x_m", "y_m", "z_m", "yaw_deg", "scale")
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    id: str
+    category: str  # boat | vehicle | pier | buoy | vegetation | rock
+    asset_id: str
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_deg: float
+    scale: tuple[float, float, float]
+    length_m: float
+    width_m: float
+    source: str = "detection"
+    score: float = 1.0
+    attrs: dict = field(default_factory=dict, compare=False)  # stage-specific extras (kept on round trip)
+
+
+@dataclass(frozen=True, eq=False)
+class Vegetation:
+    """Many instances as a compact column table."""
+
+    asset_id: np.ndarray  # str
+    category: np.ndarray  # str
+    x_m: np.ndarray
+    y_m: np.ndarray
+    z_m: np.ndarray
+    yaw_deg: np.ndarray
+    scale: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.x_m)
+
+    @staticmethod
+    def empty() -> "Vegetation":
+        e = np.zeros(0)
+        return Vegetation(np.array([], dtype=object), np.array([], dtype=object), e, e, e, e, e)
+
+    @staticmethod
+    def from_rows(rows: list[dict]) -> "Vegetation":
+        if not rows:
+            return Vegetation.empty()
+        return Vegetation(
+            np.array([str(r["asset_id"]) for r in rows], dtype=object),
+            np.array([str(r["category"]) for r in rows], dtype=object),
+            *(np.array([float(r[k]) for r in rows]) for k in VEG_COLUMNS[2:]),
+        )
+
+    def rows(self) -> list[dict]:
+        return [
+            {"asset_id": str(self.asset_id[i]), "category": str(self.category[i]),
+             **{k: float(getattr(self, k)[i]) for k in VEG_COLUMNS[2:]}}
+            for i in range(len(self))
+        ]
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    name: str
+    seed: int
+    gsd_m: float
+    extent_m: tuple[float, float]
+    water_level_m: float = 0.0
+    crs: str | None = None
+    transform: tuple[float, ...] | None = None
+    height: np.ndarray | None = None  # (H, W) float32 metres on the scene grid
+    classes: np.ndarray | None = None  # (H, W) uint8 class ids
+    objects: tuple[SceneObject, ...] = ()
+    vegetation: Vegetation | None = None
+    provenance: dict = field(default_factory=dict)
+    terrain_paths: dict = field(default_factory=lambda: {"height": "terrain/height.tif",
+                                                         "classes": "terrain/classes.png"})
+    vegetation_ref: str | None = "vegetation.csv"  # None: vegetation inline in scene.json
+    extra: dict = field(default_factory=dict)  # unknown top-level keys, kept on round trip
+
+    @property
+    def grid(self) -> Grid:
+        """The scene grid (the rasters' grid)."""
+        if self.height is not None:
+            h, w = self.height.shape
+        elif self.classes is not None:
+            h, w = self.classes.shape
+        else:
+            w, h = round(self.extent_m[0] / self.gsd_m), round(self.extent_m[1] / self.gsd_m)
+        gsd = self.extent_m[0] / w
+        return Grid(w, h, gsd, self.crs, tuple(self.transform) if self.transform else None)
+
+    def with_objects(self, objects) -> "Scene":
+        return replace(self, objects=tuple(objects))
+
+
+# ---------------------------------------------------------------- validation
+
+
+def _fail(where: str, msg: str) -> None:
+    raise SceneFormatError(f"{where}: {msg}")
+
+
+def _num(d: dict, key: str, where: str, positive: bool = False) -> float:
+    if key not in d:
+        _fail(where, f"missing required field {key!r}")
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        _fail(where, f"{key} = {v!r} is not a finite number")
+    if positive and v <= 0:
+        _fail(where, f"{key} = {v!r} must be > 0")
+    return float(v)
+
+
+def _str(d: dict, key: str, where: str) -> str:
+    if key not in d:
+        _fail(where, f"missing required field {key!r}")
+    if not isinstance(d[key], str):
+        _fail(where, f"{key} = {d[key]!r} is not a string")
+    return d[key]
+
+
+def object_from_dict(d: Any, where: str) -> SceneObject:
+    if not isinstance(d, dict):
+        _fail(where, f"expected an object (JSON dict), got {type(d).__name__}")
+    cat = _str(d, "category", where)
+    if cat not in OBJECT_CATEGORIES:
+        _fail(where, f"category = {cat!r} is not one of {', '.join(OBJECT_CATEGORIES)}")
+    src = _str(d, "source", where)
+    if src not in SOURCES:
+        _fail(where, f"source = {src!r} is not one of {', '.join(SOURCES)}")
+    yaw = _num(d, "yaw_deg", where)
+    if not (-180.0 < yaw <= 180.0):
+        _fail(where, f"yaw_deg = {yaw!r} is outside (-180, 180]; wrap it (coastforge.frames.wrap_deg)")
+    sc = d.get("scale")
+    if (not isinstance(sc, list) or len(sc) != 3
+            or not all(isinstance(s, (int, float)) and not isinstance(s, bool) and math.isfinite(s) and s > 0
+                       for s in sc)):
+        _fail(where, f"scale = {sc!r} must be a list of 3 positive numbers [sx, sy, sz]")
+    known = {"id", "category", "asset_id", "x_m", "y_m", "z_m", "yaw_deg", "scale", "length_m", "width_m",
+             "source", "score", "attrs"}
+    unknown = set(d) - known
+    if unknown:
+        _fail(where, f"unknown field(s) {sorted(unknown)}; put stage-specific data under 'attrs'")
+    attrs = d.get("attrs", {})
+    if not isinstance(attrs, dict):
+        _fail(where, f"attrs = {attrs!r} must be an object")
+    return SceneObject(
+        id=_str(d, "id", where), category=cat, asset_id=_str(d, "asset_id", where),
+        x_m=_num(d, "x_m", where), y_m=_num(d, "y_m", where), z_m=_num(d, "z_m", where), yaw_deg=yaw,
+        scale=tuple(float(s) for s in sc), length_m=_num(d, "length_m", where, positive=True),
+        width_m=_num(d, "width_m", where, positive=True), source=src, score=_num(d, "score", where), attrs=attrs,
+    )
+
+
+def object_to_dict(o: SceneObject) -> dict:
+    d = {"id": o.id, "category": o.category, "asset_id": o.asset_id, "x_m": o.x_m, "y_m": o.y_m, "z_m": o.z_m,
+         "yaw_deg": o.yaw_deg, "scale": list(o.scale), "length_m": o.length_m, "width_m": o.width_m,
+         "source": o.source, "score": o.score}
+    if o.attrs:
+        d["attrs"] = o.attrs
+    return d
+
+
+_TOP = ("format", "name", "seed", "gsd_m", "extent_m", "water_level_m", "crs", "transform", "terrain", "objects",
+        "vegetation", "provenance")
+
+
+def scene_from_dict(d: Any, where: str = "scene.json") -> Scene:
+    """Validate a scene dict (without rasters) and build a Scene."""
+    if not isinstance(d, dict):
+        _fail(where, "the top level must be a JSON object")
+    fmt = d.get("format")
+    if fmt != FORMAT:
+        _fail(where, f"format = {fmt!r}; expected {FORMAT!r}")
+    name = _str(d, "name", where)
+    seed = d.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        _fail(where, f"seed = {seed!r} must be an integer")
+    gsd = _num(d, "gsd_m", where, positive=True)
+    ext = d.get("extent_m")
+    if (not isinstance(ext, list) or len(ext) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in ext)):
+        _fail(where, f"extent_m = {ext!r} must be [width, height] in metres, both > 0")
+    wl = _num(d, "water_level_m", where)
+    crs = d.get("crs")
+    if crs is not None and not isinstance(crs, str):
+        _fail(where, f"crs = {crs!r} must be a string or null")
+    tr = d.get("transform")
+    if tr is not None and (not isinstance(tr, list) or len(tr) != 6
+                           or not all(isinstance(v, (int, float)) for v in tr)):
+        _fail(where, f"transform = {tr!r} must be 6 numbers [a, b, c, d, e, f] or null")
+    terrain = d.get("terrain")
+    if not isinstance(terrain, dict) or not isinstance(terrain.get("height"), str) \
+            or not isinstance(terrain.get("classes"), str):
+        _fail(where, f"terrain = {terrain!r} must be {{'height': path, 'classes': path}}")
+    for k, v in terrain.items():
+        if not isinstance(v, str) or Path(v).is_absolute() or ".." in Path(v).parts:
+            _fail(where, f"terrain.{k} = {v!r} must be a relative path inside the scene folder")
+    objs = d.get("objects")
+    if not isinstance(objs, list):
+        _fail(where, f"objects = {objs!r} must be a list")
+    objects = tuple(object_from_dict(o, f"{where}: objects[{i}]") for i, o in enumerate(objs))
+    ids = [o.id for o in objects]
+    if len(set(ids)) != len(ids):
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        _fail(where, f"duplicate object id(s) {dup[:5]}")
+    veg = d.get("vegetation")
+    veg_ref: str | None
+    vegetation: Vegetation | None = None
+    if veg is None:
+        veg_ref = None
+    elif isinstance(veg, str):
+        veg_ref = veg
+    elif isinstance(veg, list):
+        veg_ref = None
+        for i, r in enumerate(veg):
+            if not isinstance(r, dict) or any(k not in r for k in VEG_COLUMNS):
+                _fail(where, f"vegetation[{i}] = {r!r} needs the fields {', '.join(VEG_COLUMNS)}")
+        vegetation = Vegetation.from_rows(veg)
+    else:
+        _fail(where, f"vegetation = {veg!r} must be a CSV path or a list of instances")
+    prov = d.get("provenance", {})
+    if not isinstance(prov, dict):
+        _fail(where, f"provenance = {prov!r} must be an object")
+    return Scene(
+        name=name, seed=seed, gsd_m=gsd, extent_m=(float(ext[0]), float(ext[1])), water_level_m=wl, crs=crs,
+        transform=tuple(float(v) for v in tr) if tr else None, objects=objects, vegetation=vegetation,
+        provenance=prov, terrain_paths=dict(terrain), vegetation_ref=veg_ref,
+        extra={k: v for k, v in d.items() if k not in _TOP},
+    )
+
+
+def scene_to_dict(s: Scene) -> dict:
+    d: dict[str, Any] = {
+        "format": FORMAT, "name": s.name, "seed": int(s.seed), "gsd_m": float(s.gsd_m),
+        "extent_m": [float(s.extent_m[0]), float(s.extent_m[1])], "water_level_m": float(s.water_level_m),
+        "crs": s.crs, "transform": list(s.transform) if s.transform else None,
+        "terrain": dict(s.terrain_paths),
+        "objects": [object_to_dict(o) for o in s.objects],
+    }
+    if s.vegetation_ref is not None:
+        d["vegetation"] = s.vegetation_ref
+    elif s.vegetation is not None:
+        d["vegetation"] = s.vegetation.rows()
+    d["provenance"] = s.provenance
+    d.update(s.extra)
+    return d
+
+
+def dumps(s: Scene) -> str:
+    # allow_nan=False: a NaN slipping in must fail loudly here, not produce invalid JSON
+    return json.dumps(scene_to_dict(s), indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+# ---------------------------------------------------------------- files
+
+
+def _resolve(folder: Path, rel: str, what: str) -> Path:
+    p = (folder / rel).resolve()
+    if folder.resolve() not in p.parents and p != folder.resolve():
+        raise SceneFormatError(f"{what} = {rel!r} points outside the scene folder {folder}")
+    return p
+
+
+def load_scene(path: str | Path, rasters: bool = True) -> Scene:
+    """Load ``scene.json`` (or a folder holding one) with its rasters and vegetation table."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "scene.json"
+    if not path.is_file():
+        raise SceneFormatError(f"no scene file at {path}; expected a scene.json written by coastforge")
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SceneFormatError(f"{path} is not valid JSON: {exc}") from exc
+    scene = scene_from_dict(d, where=str(path))
+    folder = path.parent
+    height = classes = None
+    if rasters:
+        hp = _resolve(folder, scene.terrain_paths["height"], "terrain.height")
+        cp = _resolve(folder, scene.terrain_paths["classes"], "terrain.classes")
+        if hp.exists():
+            height = read_height(hp)
+        if cp.exists():
+            classes = read_png(cp)
+            if classes.ndim != 2 or classes.dtype != np.uint8:
+                raise SceneFormatError(f"{cp}: class map must be a single-band 8-bit PNG of class ids")
+            if classes.max(initial=0) >= N_CLASSES:
+                raise SceneFormatError(f"{cp}: class id {int(classes.max())} is not one of 0..{N_CLASSES - 1}")
+        if height is not None and classes is not None and height.shape != classes.shape:
+            raise SceneFormatError(f"{hp} is {height.shape} but {cp} is {classes.shape}; they must share a grid")
+    veg = scene.vegetation
+    if scene.vegetation_ref is not None:
+        vp = _resolve(folder, scene.vegetation_ref, "vegetation")
+        veg = read_vegetation_csv(vp) if vp.exists() else Vegetation.empty()
+    return replace(scene, height=height, classes=classes, vegetation=veg)
+
+
+def read_height(path: Path) -> np.ndarray:
+    import rasterio
+
+    try:
+        with rasterio.open(path) as src:
+            return src.read(1).astype(np.float32)
+    except rasterio.errors.RasterioIOError as exc:
+        raise SceneFormatError(f"cannot read the height raster {path}: {exc}") from exc
+
+
+def read_vegetation_csv(path: Path) -> Vegetation:
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        if reader.fieldnames is None or list(reader.fieldnames) != list(VEG_COLUMNS):
+            raise SceneFormatError(f"{path}: header must be {','.join(VEG_COLUMNS)}, got {reader.fieldnames}")
+        return Vegetation.from_rows(list(reader))
+
+
+def vegetation_csv(v: Vegetation) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(VEG_COLUMNS)
+    for i in range(len(v)):
+        w.writerow([v.asset_id[i], v.category[i], *(repr(float(getattr(v, k)[i])) for k in VEG_COLUMNS[2:])])
+    return buf.getvalue()
+
+
+def save_scene(scene: Scene, folder: str | Path) -> Path:
+    """Write scene.json and its rasters into ``folder`` (atomically, file by file; scene.json last)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    text = dumps(scene)  # validate serialisability before touching any file
+    scene_from_dict(json.loads(text))
+    grid = scene.grid
+    if scene.height is not None:
+        tr = scene.transform if scene.transform else grid.scene_transform()
+        write_geotiff(_resolve(folder, scene.terrain_paths["height"], "terrain.height"),
+                      scene.height.astype(np.float32), tr, crs=scene.crs)
+    if scene.classes is not None:
+        write_png(_resolve(folder, scene.terrain_paths["classes"], "terrain.classes"), scene.classes.astype(np.uint8))
+    if scene.vegetation_ref is not None:
+        atomic_write_text(_resolve(folder, scene.vegetation_ref, "vegetation"),
+                          vegetation_csv(scene.vegetation or Vegetation.empty()))
+    return atomic_write_text(folder / "scene.json", text)
