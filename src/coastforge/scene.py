@@ -347,8 +347,10 @@ def vegetation_csv(v: Vegetation) -> str:
     return buf.getvalue()
 
 
-def save_scene(scene: Scene, folder: str | Path) -> Path:
-    """Write scene.json and its rasters into ``folder`` (atomically, file by file; scene.json last)."""
+def save_scene(scene: Scene, folder: str | Path, filename: str = "scene.json") -> Path:
+    """Write scene.json (or ``filename``, e.g. truth.json) and its rasters into ``folder``.
+
+    Each file is written atomically; the JSON last, so a scene file always points at complete rasters."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     text = dumps(scene)  # validate serialisability before touching any file
@@ -363,4 +365,4 @@ def save_scene(scene: Scene, folder: str | Path) -> Path:
     if scene.vegetation_ref is not None:
         atomic_write_text(_resolve(folder, scene.vegetation_ref, "vegetation"),
                           vegetation_csv(scene.vegetation or Vegetation.empty()))
-    return atomic_write_text(folder / "scene.json", text)
+    return atomic_write_text(folder / filename, text)
