@@ -1,0 +1,180 @@
+"""Detection: boats, vehicles, buoys and pier walkways/fingers as oriented boxes with a heading.
+
+A backend is a class built with ``(config: DetectConfig, **opts)`` whose
+``detect(image: GeoImage, class_map: ClassMap | None, seed: int) -> list[Detection]`` returns oriented
+boxes in image pixels (see ``coastforge.types.Detection``). Backends are registered in
+``coastforge.registry`` (``classical`` default, ``yolo``, ``onnx``).
+
+This module also holds the JSON form of detections (``detections_to_json`` / ``detections_from_json``)
+and the overlay drawing used by ``coastforge detect --overlay``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from ..classes import DETECTION_CATEGORIES
+from ..config import DetectConfig
+from ..errors import InputError
+from ..types import ClassMap, Detection, GeoImage
+
+JSON_FORMAT = "coastforge.detections/1"
+
+
+class Detector(Protocol):
+    def detect(self, image: GeoImage, class_map: ClassMap | None, seed: int) -> list[Detection]: ...
+
+
+def detect(image: GeoImage, config: DetectConfig | None = None, class_map: ClassMap | None = None,
+           backend: str | None = None, seed: int = 0, **opts: Any) -> list[Detection]:
+    """Run one detector backend on an image; returns detections sorted by descending score."""
+    from .. import registry
+
+    config = config or DetectConfig()
+    name = backend or config.backend
+    if not isinstance(image, GeoImage):
+        raise InputError(f"detect needs a GeoImage (from coastforge.io.read_image), got {type(image).__name__}")
+    rgb = image.rgb
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise InputError(f"detect needs an (H, W, 3) uint8 RGB image, got shape {rgb.shape} dtype {rgb.dtype}")
+    if class_map is not None and class_map.ids.shape != rgb.shape[:2]:
+        raise InputError(
+            f"class map shape {class_map.ids.shape} differs from the image shape {rgb.shape[:2]}; "
+            "segment the same image (or resample the class map to it)"
+        )
+    cls = registry.load("detect", name)
+    detector = cls(config, **opts)
+    dets = detector.detect(image, class_map, seed)
+    out = []
+    for d in dets:
+        if d.category not in DETECTION_CATEGORIES:
+            raise ValueError(f"backend {name!r} returned unknown category {d.category!r}")
+        if d.score >= config.min_score:
+            out.append(d)
+    out.sort(key=lambda d: (-d.score, d.cy_px, d.cx_px))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------- JSON
+
+def detection_to_dict(d: Detection) -> dict:
+    return {
+        "category": d.category,
+        "score": round(float(d.score), 4),
+        "corners_px": [[round(float(c), 2), round(float(r), 2)] for c, r in d.corners_px()],
+        "cx_px": round(float(d.cx_px), 3),
+        "cy_px": round(float(d.cy_px), 3),
+        "length_px": round(float(d.length_px), 3),
+        "width_px": round(float(d.width_px), 3),
+        "yaw_deg": round(float(d.yaw_deg), 3),
+        "heading_known": bool(d.heading_known),
+        "heading_confidence": round(float(d.heading_confidence), 3),
+    }
+
+
+def detections_to_json(detections: list[Detection], gsd_m: float, image_size: tuple[int, int],
+                       provenance: dict | None = None) -> str:
+    """The detections file: ``{"gsd_m", "image_size": [w, h], "detections": [...]}``."""
+    doc: dict[str, Any] = {
+        "format": JSON_FORMAT,
+        "gsd_m": float(gsd_m),
+        "image_size": [int(image_size[0]), int(image_size[1])],
+        "detections": [detection_to_dict(d) for d in detections],
+    }
+    if provenance:
+        doc["provenance"] = provenance
+    return json.dumps(doc, indent=1) + "\n"
+
+
+def _num(d: dict, key: str, i: int, where: str) -> float:
+    v = d.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise InputError(f"{where}: detection {i} field {key!r} = {v!r} must be a finite number")
+    return float(v)
+
+
+def detections_from_json(text: str | bytes | Path, where: str = "detections JSON") -> tuple[list[Detection], dict]:
+    """Parse a detections file (text, or a path). Returns (detections, header with gsd_m and image_size)."""
+    if isinstance(text, Path):
+        where = str(text)
+        if not text.is_file():
+            raise InputError(f"detections file {text} does not exist")
+        text = text.read_text(encoding="utf-8")
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{where} is not valid JSON ({exc}); write it with coastforge detect") from exc
+    if not isinstance(doc, dict) or not isinstance(doc.get("detections"), list):
+        raise InputError(f"{where} must be an object with a 'detections' list")
+    dets = []
+    for i, d in enumerate(doc["detections"]):
+        if not isinstance(d, dict):
+            raise InputError(f"{where}: detection {i} must be an object, got {d!r}")
+        cat = d.get("category")
+        if cat not in DETECTION_CATEGORIES:
+            raise InputError(f"{where}: detection {i} has category {cat!r}; valid: {', '.join(DETECTION_CATEGORIES)}")
+        length, width = _num(d, "length_px", i, where), _num(d, "width_px", i, where)
+        if length <= 0 or width <= 0:
+            raise InputError(f"{where}: detection {i} has a non-positive size {length} x {width} px")
+        dets.append(Detection(
+            category=cat, score=_num(d, "score", i, where), cx_px=_num(d, "cx_px", i, where),
+            cy_px=_num(d, "cy_px", i, where), length_px=length, width_px=width,
+            yaw_deg=_num(d, "yaw_deg", i, where), heading_known=bool(d.get("heading_known", False)),
+            heading_confidence=float(d.get("heading_confidence", 0.5 if d.get("heading_known") else 0.0)),
+        ))
+    header = {"gsd_m": doc.get("gsd_m"), "image_size": doc.get("image_size")}
+    return dets, header
+
+
+# -------------------------------------------------------------------------------------------- overlay
+
+CATEGORY_COLOURS: dict[str, tuple[int, int, int]] = {  # RGB
+    "boat": (255, 60, 60),
+    "vehicle": (255, 220, 0),
+    "pier_walkway": (0, 255, 120),
+    "pier_finger": (0, 200, 255),
+    "buoy": (255, 0, 255),
+}
+
+
+def draw_overlay(rgb: np.ndarray, detections: list[Detection], thickness: int = 1) -> np.ndarray:
+    """The image with each box outlined in its category colour and an arrow toward its front
+    (a plain line through the box when the heading is unknown)."""
+    import cv2
+
+    from ..frames import direction_px
+
+    out = np.ascontiguousarray(rgb.copy())
+    for d in detections:
+        col = CATEGORY_COLOURS.get(d.category, (255, 255, 255))
+        pts = np.round(d.corners_px() - 0.5).astype(np.int32)  # continuous coords -> pixel index
+        cv2.polylines(out, [pts], True, col, thickness, cv2.LINE_AA)
+        if d.category in ("boat", "vehicle"):
+            fx, fy = direction_px(d.yaw_deg)
+            c = np.array([d.cx_px - 0.5, d.cy_px - 0.5])
+            tip = c + np.array([fx, fy]) * d.length_px * 0.5
+            if d.heading_known:
+                cv2.arrowedLine(out, tuple(int(round(v)) for v in c), tuple(int(round(v)) for v in tip),
+                                (255, 255, 255), thickness, cv2.LINE_AA, tipLength=0.35)
+            else:
+                tail = c - np.array([fx, fy]) * d.length_px * 0.35
+                cv2.line(out, tuple(int(round(v)) for v in tail), tuple(int(round(v)) for v in tip - (tip - c) * 0.3),
+                         (160, 160, 160), thickness, cv2.LINE_AA)
+    return out
+
+
+def write_overlay(path: str | Path, rgb: np.ndarray, detections: list[Detection]) -> Path:
+    from ..fsio import write_png
+
+    return write_png(path, draw_overlay(rgb, detections, thickness=max(1, round(max(rgb.shape[:2]) / 1500))))
+
+
+def with_mask_dropped(dets: list[Detection]) -> list[Detection]:
+    """Detections without their masks (smaller to keep around)."""
+    return [replace(d, mask=None, mask_origin_px=None) for d in dets]
