@@ -1,0 +1,81 @@
+"""Placement: a detection plus its chosen asset → an object in the scene frame.
+
+Position from the box centre, yaw from the heading, scale from the box against the asset's real
+dimensions (uniform by default, per axis as an option, clamped), z at the water level for floating
+objects and on the terrain for the rest.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from .config import MatchConfig
+from .frames import wrap_deg
+from .scene import SceneObject
+from .types import Detection, Grid, HeightMap
+
+FLOATING_CATEGORIES = ("boat", "buoy")
+
+
+class AssetLike(Protocol):
+    id: str
+    category: str
+    dims_m: tuple[float, float, float]
+    floating: bool
+
+
+def box_in_metres(det: Detection, grid: Grid) -> tuple[float, float, float, float]:
+    """(x_m, y_m, length_m, width_m) of a detection."""
+    x, y = grid.to_scene(det.cx_px, det.cy_px)
+    return float(x), float(y), det.length_px * grid.gsd_m, det.width_px * grid.gsd_m
+
+
+def fit_scale(length_m: float, width_m: float, dims_m: tuple[float, float, float], config: MatchConfig
+              ) -> tuple[float, float, float]:
+    """Scale that makes the asset's footprint match the box. Uniform: the geometric mean of the length and
+    width ratios (robust to a box that is a little too wide); per-axis: each ratio, height follows width."""
+    L, W, _H = dims_m
+    rl, rw = length_m / max(L, 1e-6), width_m / max(W, 1e-6)
+    lo, hi = config.scale_min, config.scale_max
+    if config.scale_mode == "per_axis":
+        sx, sy = float(np.clip(rl, lo, hi)), float(np.clip(rw, lo, hi))
+        return (sx, sy, float(np.sqrt(sx * sy)))
+    # length is measured more reliably than width (shadows and fenders widen boxes): weight it more
+    s = float(np.clip(np.exp(0.75 * np.log(max(rl, 1e-6)) + 0.25 * np.log(max(rw, 1e-6))), lo, hi))
+    return (s, s, s)
+
+
+def ground_height(height: HeightMap | None, grid: Grid, x_m: float, y_m: float, radius_m: float) -> float:
+    """Highest terrain under a small disc (so a car never sinks into a slope)."""
+    if height is None:
+        return 0.0
+    hg = height.grid
+    col, row = hg.to_pixel(x_m, y_m)
+    r = max(1, int(np.ceil(radius_m / hg.gsd_m)))
+    c0, c1 = int(max(0, col - r)), int(min(hg.width_px, col + r + 1))
+    r0, r1 = int(max(0, row - r)), int(min(hg.height_px, row + r + 1))
+    if c1 <= c0 or r1 <= r0:
+        return 0.0
+    return float(np.max(height.z_m[r0:r1, c0:c1]))
+
+
+def place(det: Detection, asset: AssetLike, grid: Grid, object_id: str, config: MatchConfig,
+          height: HeightMap | None = None, water_level_m: float = 0.0, yaw_deg: float | None = None,
+          score: float | None = None, attrs: dict | None = None) -> SceneObject:
+    """A scene object for ``det`` rendered with ``asset``. ``yaw_deg`` overrides the detection's heading
+    (e.g. after the matcher resolved bow versus stern)."""
+    x, y, length, width = box_in_metres(det, grid)
+    scale = fit_scale(length, width, asset.dims_m, config)
+    category = "boat" if asset.category == "boat" else asset.category
+    if asset.floating or asset.category in FLOATING_CATEGORIES:
+        z = water_level_m  # meshes are normalised with z = 0 at their waterline
+    else:
+        z = ground_height(height, grid, x, y, radius_m=min(length, width) / 2)
+    yaw = float(wrap_deg(det.yaw_deg if yaw_deg is None else yaw_deg))
+    return SceneObject(
+        id=object_id, category=category, asset_id=asset.id, x_m=x, y_m=y, z_m=float(z), yaw_deg=yaw,
+        scale=scale, length_m=float(asset.dims_m[0] * scale[0]), width_m=float(asset.dims_m[1] * scale[1]),
+        source="detection", score=float(det.score if score is None else score), attrs=dict(attrs or {}),
+    )
