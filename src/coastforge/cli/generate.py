@@ -1,0 +1,56 @@
+"""``coastforge generate``: the whole pipeline, one image in, one scene out."""
+
+from __future__ import annotations
+
+import shlex
+import sys
+
+import click
+
+from .options import overwrite_option, pass_config, size_options
+
+
+@click.command()
+@click.argument("image", type=click.Path())
+@size_options
+@click.option("--library", type=click.Path(), default=None,
+              help="Asset library folder (coastforge library build); default: the bundled starter kit.")
+@click.option("--out", required=True, type=click.Path(), help="Output folder for scene.json and everything else.")
+@click.option("--export", "exports", default="", metavar="LIST",
+              help="Comma-separated export formats: ue5,holoocean,gltf,usd,sdf.")
+@click.option("--dem", "dems", multiple=True, type=click.Path(), help="A DEM/bathymetry GeoTIFF to fuse (repeatable).")
+@click.option("--no-report", is_flag=True, help="Do not build report.html.")
+@overwrite_option
+@pass_config
+def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwrite, config):
+    """Turn IMAGE (PNG/JPEG with --gsd or --size-m, or a GeoTIFF) into a simulation scene in --out."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from ..errors import InputError
+    from ..pipeline import GenerateRequest, run_generate
+
+    fmts = tuple(f.strip() for f in exports.split(",") if f.strip())
+    valid = ("ue5", "holoocean", "gltf", "usd", "sdf")
+    bad = [f for f in fmts if f not in valid]
+    if bad:
+        raise InputError(f"--export {','.join(bad)} is not a known format; valid formats: {', '.join(valid)}")
+    req = GenerateRequest(image=image, out=out, gsd_m=gsd, size_m=tuple(size_m) if size_m else None,
+                          library=library, exports=fmts, dems=tuple(dems), overwrite=overwrite,
+                          report=not no_report, command=shlex.join(["coastforge", *sys.argv[1:]]))
+    console = Console(stderr=True)
+    with Progress(TextColumn("{task.description:<12}"), BarColumn(), TimeElapsedColumn(), console=console,
+                  transient=True) as bar:
+        task = bar.add_task("starting", total=None)
+
+        def progress(stage: str, frac: float) -> None:
+            bar.update(task, description=stage)
+
+        result = run_generate(req, config, progress)
+    counts = ", ".join(f"{v} {k}" for k, v in result.n_objects.items())
+    console.print(f"[bold]scene[/bold]  {result.scene_path}  ({counts})")
+    console.print("timings  " + ", ".join(f"{k} {v:.2f}s" for k, v in result.timings_s.items()))
+    for fmt, path in result.exports.items():
+        console.print(f"export   {fmt}: {path}")
+    if result.report_path:
+        console.print(f"[bold]report[/bold] {result.report_path}")

@@ -1,0 +1,250 @@
+"""``generate``: one image in, one complete scene out.
+
+read → detect → segment (transient objects and pier decks filled from their surroundings) → terrain →
+match + place → piers → vegetation → scene.json + rasters → exports. Each stage's wall time goes into
+the scene's provenance; the folder is written stage by stage, so an interrupted run keeps what it made.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import sys
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from . import __version__
+from .classes import WATER
+from .config import Config
+from .fsio import atomic_write_text, prepare_output_dir
+from .scene import Scene, save_scene
+from .types import ClassMap, Detection, GeoImage
+
+Progress = Callable[[str, float], None]  # (stage name, fraction done)
+
+
+@dataclass(frozen=True)
+class GenerateRequest:
+    image: str
+    out: str
+    gsd_m: float | None = None
+    size_m: tuple[float, float] | None = None
+    library: str | None = None
+    exports: tuple[str, ...] = ()
+    dems: tuple[str, ...] = ()
+    overwrite: bool = False
+    report: bool = True
+    command: str = ""
+
+
+@dataclass(frozen=True)
+class GenerateResult:
+    scene_path: Path
+    out_dir: Path
+    timings_s: dict
+    n_objects: dict
+    exports: dict = field(default_factory=dict)
+    report_path: Path | None = None
+
+
+class _Timer:
+    def __init__(self, progress: Progress | None):
+        self.t: dict[str, float] = {}
+        self.progress = progress
+
+    @contextmanager
+    def stage(self, name: str):
+        if self.progress:
+            self.progress(name, 0.0)
+        t0 = time.perf_counter()
+        yield
+        self.t[name] = round(time.perf_counter() - t0, 3)
+        if self.progress:
+            self.progress(name, 1.0)
+
+
+def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: float = 2.0) -> ClassMap:
+    """Classes under transient objects (boats, vehicles) and pier decks are what surrounds them: a boat sits on
+    water, a car on asphalt, and a pier deck over water must not become land in the height map."""
+    import cv2
+
+    ids = class_map.ids.copy()
+    h, w = ids.shape
+    for d in dets:
+        grow = margin_px
+        corners = Detection(d.category, d.score, d.cx_px, d.cy_px, d.length_px + 2 * grow, d.width_px + 2 * grow,
+                            d.yaw_deg).corners_px()
+        poly = np.round(corners).astype(np.int32)
+        x0, y0 = np.maximum(poly.min(0) - 4, 0)
+        x1, y1 = np.minimum(poly.max(0) + 5, [w, h])
+        if x1 <= x0 or y1 <= y0:
+            continue
+        inner = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.fillPoly(inner, [poly - [x0, y0]], 1)
+        ring = cv2.dilate(inner, np.ones((7, 7), np.uint8)) & (1 - inner)
+        sub = ids[y0:y1, x0:x1]
+        around = sub[ring.astype(bool)]
+        if around.size == 0:
+            continue
+        counts = np.bincount(around, minlength=8)
+        if d.category in ("pier_walkway", "pier_finger"):
+            # a pier is over water where water dominates its sides; its landward root stays land
+            if counts[WATER] < 0.35 * around.size:
+                continue
+            fill = WATER
+        else:
+            fill = int(counts.argmax())
+        sub[inner.astype(bool)] = fill
+    return ClassMap(ids, class_map.grid, class_map.proba)
+
+
+def _load_library(path: str | None):
+    from .assets import library as lib_mod
+
+    return lib_mod.Library.load(path) if path else lib_mod.default_library()
+
+
+def _pier_assets(library):
+    piers = [a for a in library.assets if a.category == "pier"]
+    if not piers:
+        return None, None
+
+    def pick(word):
+        for a in piers:
+            if word in a.id or word in tuple(getattr(a, "tags", ()) or ()):
+                return a
+        return None
+
+    walk = pick("walkway") or max(piers, key=lambda a: a.dims_m[1])
+    finger = pick("finger") or min(piers, key=lambda a: a.dims_m[1])
+    return walk, finger
+
+
+def run_generate(req: GenerateRequest, config: Config, progress: Progress | None = None) -> GenerateResult:
+    from .detection import detect
+    from .io import read_image
+    from .matching import match_detections
+    from .piers import build_piers
+    from .placement import place
+    from .segmentation import segment
+    from .terrain import estimate_terrain
+    from .types import HeightMap
+    from .vegetation import scatter
+
+    out = prepare_output_dir(req.out, req.overwrite)
+    timer = _Timer(progress)
+    seed = config.seed
+    with timer.stage("read"):
+        image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
+        grid = image.grid
+    with timer.stage("library"):
+        library = _load_library(req.library)
+    with timer.stage("segment"):
+        class_map = segment(image, config.segment, seed=seed)
+    with timer.stage("detect"):
+        dets = detect(image, config.detect, class_map=class_map, seed=seed)
+    with timer.stage("clean"):
+        class_map = fill_under_objects(class_map, dets)
+        cleaned = _clean(image, dets, class_map, seed)
+    with timer.stage("terrain"):
+        terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
+        height: HeightMap = terrain.height
+    with timer.stage("match"):
+        decisions = match_detections(image, dets, library, config.match, seed)
+        assets = {a.id: a for a in library.assets}
+        objects = []
+        counters: dict[str, int] = {}
+        for dec in decisions:
+            d = dets[dec.index]
+            k = counters.get(d.category, 0)
+            counters[d.category] = k + 1
+            objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
+                                 water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
+                                 attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4)}))
+    with timer.stage("piers"):
+        walk, finger = _pier_assets(library)
+        pier_report: dict = {"n_structures": 0}
+        if walk is not None:
+            pr = build_piers(dets, class_map, walk, finger, config.piers)
+            objects.extend(pr.objects)
+            pier_report = pr.report
+    with timer.stage("vegetation"):
+        by_cat: dict[str, list[str]] = {}
+        for a in library.assets:
+            by_cat.setdefault(a.category, []).append(a.id)
+        veg = scatter(class_map.ids, height.z_m, grid, by_cat, objects, config.vegetation, seed)
+    with timer.stage("write"):
+        from .fsio import write_png
+
+        scene = Scene(
+            name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
+            crs=grid.crs, transform=grid.transform, height=height.z_m.astype(np.float32),
+            classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
+            provenance={
+                "tool": "coastforge", "version": __version__, "command": req.command, "seed": seed,
+                "input": {"image": str(req.image), "gsd_m": grid.gsd_m, "size_px": [grid.width_px, grid.height_px]},
+                "library": str(req.library) if req.library else "starter-kit",
+                "backends": {"segment": config.segment.backend, "terrain": config.terrain.backend,
+                             "detect": config.detect.backend, "embedder": getattr(library.embedder, "name", "?")},
+                "config": config.to_dict(),
+                "counts": {"detections": len(dets), "objects": len(objects), "vegetation": len(veg.vegetation)},
+                "piers": pier_report,
+                "matches": [m.to_dict() for m in decisions],
+                "python": sys.version.split()[0], "platform": platform.platform(),
+            })
+        _write_stage_outputs(out, image, cleaned, class_map, dets, terrain, veg)
+        for name, m in veg.masks.items():
+            write_png(out / "pcg" / f"{name}.png", m)
+    exports = {}
+    if req.exports:
+        with timer.stage("export"):
+            from .export import export_scene
+
+            scene_for_export = scene
+            exports = export_scene(scene_for_export, list(req.exports), out, overwrite=True, scene_dir=out)
+    timings = dict(timer.t)
+    timings["total"] = round(sum(timer.t.values()), 3)
+    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
+    scene_path = save_scene(scene, out)
+    report_path = None
+    if req.report:
+        try:
+            from .report import build_report
+        except ImportError:
+            build_report = None
+        if build_report is not None:
+            t0 = time.perf_counter()
+            report_path = build_report(out)
+            timings["report"] = round(time.perf_counter() - t0, 3)
+    counts = {}
+    for o in objects:
+        counts[o.category] = counts.get(o.category, 0) + 1
+    counts["vegetation"] = len(veg.vegetation)
+    return GenerateResult(scene_path, out, timings, counts, exports, report_path)
+
+
+def _clean(image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
+    from .segmentation.clean import clean_image
+
+    transient = [d for d in dets if d.category in ("boat", "vehicle", "buoy")]
+    return clean_image(image, transient, class_map, seed)
+
+
+def _write_stage_outputs(out: Path, image: GeoImage, cleaned: np.ndarray, class_map: ClassMap, dets, terrain, veg):
+    from .detection import detections_to_json
+    from .fsio import write_png
+    from .segmentation.outputs import write_segmentation
+
+    write_png(out / "cleaned.png", cleaned)
+    write_segmentation(out / "segmentation", class_map, image)
+    atomic_write_text(out / "detections.json", json.dumps(detections_to_json(dets, image.grid), indent=1))
+    try:
+        from .terrain.outputs import write_terrain_outputs
+    except ImportError:
+        return
+    write_terrain_outputs(out / "terrain_outputs", terrain)
