@@ -118,6 +118,23 @@ def heading_evidence(crop: np.ndarray, crop_gsd: float, view: np.ndarray, view_g
     return float((c * v).sum() - (c[::-1, ::-1] * v).sum())
 
 
+_VIEW_CACHE: dict = {}
+
+
+def asset_top_view(library, asset_id: str, background: str) -> tuple[np.ndarray, float]:
+    """The asset seen from above at yaw 0 (front at +x) and its metres per pixel, rendered once and cached."""
+    key = (id(library), asset_id, background)
+    if key not in _VIEW_CACHE:
+        from .render import render_mesh_view, standard_view_lightings
+
+        mesh = library.mesh(asset_id)
+        ext = mesh.extents
+        gsd = max(float(max(ext[0], ext[1])) * 1.3 / 160.0, 0.01)
+        view = render_mesh_view(mesh, gsd, 160, standard_view_lightings()[0], background)
+        _VIEW_CACHE[key] = (view, gsd)
+    return _VIEW_CACHE[key]
+
+
 def match_detections(image: GeoImage, dets: list[Detection], library, config: MatchConfig, seed: int,
                      heading_threshold: float = 0.75) -> list[MatchDecision]:
     """Choose an asset and a final yaw for every boat, vehicle and buoy detection."""
@@ -158,8 +175,8 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
             raise LibraryError(f"match.mode = {config.mode!r}; valid modes: best, sample")
         yaw, source, evidence = float(d.yaw_deg), "detector", 0.0
         if not d.heading_known or d.heading_confidence < heading_threshold:
-            view, view_gsd = library.top_view(chosen.asset_id, background="water" if d.category != "vehicle"
-                                              else "ground")
+            view, view_gsd = asset_top_view(library, chosen.asset_id,
+                                            "water" if d.category != "vehicle" else "ground")
             crop, cg = crops[row], gsds[row]
             evidence = heading_evidence(crop, cg, view, view_gsd, L, W)
             if evidence < 0:
