@@ -111,3 +111,12 @@ def test_atomic_write_leaves_no_temp_files(tmp_path):
     save_scene(make_scene(), tmp_path)
     leftovers = [p for p in tmp_path.rglob(".*") if p.is_file()]
     assert leftovers == []
+
+
+def test_outputs_have_normal_permissions(tmp_path):
+    import os
+    import stat
+
+    save_scene(make_scene(), tmp_path)
+    mode = stat.S_IMODE(os.stat(tmp_path / "scene.json").st_mode)
+    assert mode & stat.S_IRGRP and mode & stat.S_IROTH  # not 0600 like mkstemp's temporary file
