@@ -36,6 +36,15 @@ class SegmentConfig:
     weight_blur_m: float = 1.0  # softened borders of the paint-layer weight maps
     superpixel_m: float = 2.0  # SLIC superpixel size
     self_training: bool = True
+    work_gsd_m: float = 0.4  # classical works at this resolution (or the image's, if coarser), then upsamples
+    max_work_px: int = 600_000  # cap on the working raster size (speed)
+    water_min_m2: float = 1500.0  # smooth water-coloured regions smaller than this are not water
+    water_close_m: float = 2.5  # gaps between boats / pier fingers narrower than ~2x this are closed over
+    water_hole_max_m2: float = 6000.0  # enclosed non-water blobs up to this size (boats, pier clusters) become water
+    rocks_shore_m: float = 30.0  # rocks farther than this from water are unlikely (0 = no prior)
+    vehicle_area_max_m2: float = 400.0  # blobs up to this size enclosed by asphalt become asphalt (parked cars)
+    biome_shore_m: float = 15.0  # biome map: land this close to the waterline is "shore"
+    biome_shallow_m: float = 20.0  # biome map: water this close to land is "shallow" (seaweed)
 
 
 @dataclass(frozen=True)
@@ -55,6 +64,12 @@ class TerrainConfig:
     noise_m: float = 0.15  # small-scale natural variation (not on paved areas)
     seam_m: float = 20.0  # DEM blending band
     optical_depth: bool = False  # Stumpf log-ratio modulation in clear shallow water
+    beach_slope: float = 0.08  # rise/run of the beach face up to the berm
+    revetment_height_m: float = 2.0  # crest of a rock revetment above the water level
+    revetment_toe_m: float = 2.5  # depth at the foot of a rock revetment
+    bank_height_m: float = 1.0  # top of a natural bank above the water level
+    shore_blend_m: float = 3.0  # along-coast length over which neighbouring shore types blend
+    optical_max_depth_m: float = 6.0  # the optical estimate is trusted only in water shallower than this
 
 
 @dataclass(frozen=True)
@@ -68,15 +83,50 @@ class DetectConfig:
     slice_px: int = 1024
     slice_overlap_px: int = 128
     nms_iou: float = 0.3
+    # classical backend (lengths in metres; colour differences in Lab units)
+    work_gsd_m: float = 0.15  # finer images are downsampled to this for speed
+    min_water_area_m2: float = 400.0
+    water_model_m: float = 8.0  # scale of the local water colour model
+    near_water_m: float = 15.0  # objects further from water are land
+    struct_dl: float = 15.0  # structure over water: brighter than the water by this
+    struct_dc: float = 10.0  # ... or of another colour by this
+    boat_mask: str = "core"  # core: bright/coloured cores grown by watershed | struct: all structure
+    boat_core_dl: float = 70.0
+    boat_core_dc: float = 14.0
+    boat_region_dl: float = 30.0
+    boat_region_dc: float = 12.0
+    boat_open_m: float = 0.4
+    min_boat_width_m: float = 1.2
+    min_boat_aspect: float = 1.4
+    merge_gap_m: float = 1.0  # boat pieces on one axis closer than this are joined
+    max_boat_aspect: float = 5.5
+    split_area_m2: float = 25.0  # cores bigger than this may be re-seeded to split rafted boats...
+    split_max_aspect: float = 1.5  # ... when squatter than this (one boat is ~2.5-4 times longer than wide)
+    boat_water_touch_m: float = 4.0  # a boat comes at least this close to open water
+    mainland_cut_m: float = 2.0  # walkways narrower than twice this do not join a pier block to land
+    mainland_far_m: float = 20.0  # land reaches this far from any water
+    snap_deg: float = 10.0  # snap boat axes to their pier's direction (or perpendicular) within this
+    snap_radius_m: float = 15.0  # ... when the pier is this close (or one boat length)
+    walkway_min_m: float = 18.0
+    walkway_max_width_m: float = 3.0
+    finger_min_m: float = 5.0
+    finger_max_width_m: float = 1.6
+    vehicles: bool = True
+    vehicle_water_gap_m: float = 3.0
+    vehicle_hat_m: float = 3.2  # top-hat disc: wider than a car, narrower than two
+    vehicle_dl: float = 28.0
+    vehicle_pitch_m: float = 2.6  # centre spacing of cars parked side by side
 
 
 @dataclass(frozen=True)
 class LibraryConfig:
     embedder: str = "default"
-    view_gsd_m: float = 0.05  # metres per pixel of the library's top-down views
-    view_size_px: int = 256
+    view_gsd_m: float = 0.05  # base metres per pixel of the views; each asset uses base x 2^k so it fits
+    view_size_px: int = 128
     lightings: int = 3
     backgrounds: tuple[str, ...] = ("water", "ground")
+    embed_scales: tuple[float, ...] = (1.0, 2.0, 4.0)  # views are also embedded downsampled (coarse queries)
+    workers: int = 0  # build processes; 0 = one per core (at most 4)
 
 
 @dataclass(frozen=True)
@@ -125,6 +175,13 @@ class ExportConfig:
     package_name: str = "Ocean"
     gltf_max_vertices: int = 250_000
     ue_max_size: int = 8129
+    content_path: str = "/Game/Coastforge"  # where build_level.py saves the level and imported meshes
+    pcg_graph: str = ""  # optional PCG graph asset path set on the scene's PCG volume
+    ticks_per_sec: int = 30  # HoloOcean simulation rate (every sensor Hz must be <= this)
+    big_float_length_m: float = 8.0  # floating boats this long or longer go to float/big_float
+    max_vegetation_actors: int = 5000  # more instances are left to the PCG masks in Unreal
+    sdf_heightmap_max: int = 1025  # Gazebo heightmap side (2^n + 1 samples)
+    texture_max_px: int = 4096  # terrain texture side limit for glTF / SDF
 
 
 @dataclass(frozen=True)
