@@ -41,7 +41,8 @@ class SegmentConfig:
     water_min_m2: float = 1500.0  # smooth water-coloured regions smaller than this are not water
     water_close_m: float = 2.5  # gaps between boats / pier fingers narrower than ~2x this are closed over
     water_hole_max_m2: float = 6000.0  # enclosed non-water blobs up to this size (boats, pier clusters) become water
-    rocks_shore_m: float = 30.0  # rocks farther than this from water are unlikely (0 = no prior)
+    pier_open_m: float = 5.0  # structures narrower than ~2x this, tied to the shore and fragmented (piers with boats), are water
+    rocks_shore_m: float = 15.0  # rocks farther than this from water are unlikely (0 = no prior)
     vehicle_area_max_m2: float = 400.0  # blobs up to this size enclosed by asphalt become asphalt (parked cars)
     biome_shore_m: float = 15.0  # biome map: land this close to the waterline is "shore"
     biome_shallow_m: float = 20.0  # biome map: water this close to land is "shallow" (seaweed)
@@ -86,6 +87,7 @@ class DetectConfig:
     # classical backend (lengths in metres; colour differences in Lab units)
     work_gsd_m: float = 0.15  # finer images are downsampled to this for speed
     min_water_area_m2: float = 400.0
+    water_min_chroma: float = 9.0  # water is tinted (blue/green); grey asphalt is not
     water_model_m: float = 8.0  # scale of the local water colour model
     near_water_m: float = 15.0  # objects further from water are land
     struct_dl: float = 15.0  # structure over water: brighter than the water by this
@@ -107,14 +109,19 @@ class DetectConfig:
     mainland_far_m: float = 20.0  # land reaches this far from any water
     snap_deg: float = 10.0  # snap boat axes to their pier's direction (or perpendicular) within this
     snap_radius_m: float = 15.0  # ... when the pier is this close (or one boat length)
+    pier_gsd_m: float = 0.3  # piers are searched on a grid this coarse (speed)
     walkway_min_m: float = 18.0
     walkway_max_width_m: float = 3.0
     finger_min_m: float = 5.0
     finger_max_width_m: float = 1.6
+    buoy_min_area_m2: float = 0.04
+    buoy_max_area_m2: float = 2.0
+    buoy_clear_m: float = 3.0  # nothing else this close to a buoy
+    buoy_contrast: float = 40.0
     vehicles: bool = True
     vehicle_water_gap_m: float = 3.0
     vehicle_hat_m: float = 3.2  # top-hat disc: wider than a car, narrower than two
-    vehicle_dl: float = 28.0
+    vehicle_dl: float = 40.0
     vehicle_pitch_m: float = 2.6  # centre spacing of cars parked side by side
 
 
