@@ -69,34 +69,45 @@ class PierResult:
 
 class LandProbe:
     """Is a point on real land? Pier decks themselves are often classified as paving, so pixels inside
-    pier boxes do not count as land."""
+    pier boxes do not count as land. Works on a raster mask, so a probe costs microseconds."""
 
     def __init__(self, class_map: ClassMap, boxes: list[PierBox]):
-        from shapely import contains_xy
-        from shapely.ops import unary_union
+        import cv2
 
-        self.cm, self.grid = class_map, class_map.grid
-        self.union = unary_union([b.polygon() for b in boxes]) if boxes else None
-        self._contains = contains_xy
+        self.grid = g = class_map.grid
+        land = (class_map.ids != WATER).astype(np.uint8)
+        deck = np.zeros(g.shape, np.uint8)
+        for b in boxes:
+            pts = np.array(b.polygon().exterior.coords)[:4]
+            col, row = g.to_pixel(pts[:, 0], pts[:, 1])
+            cv2.fillPoly(deck, [np.round(np.stack([col, row], 1)).astype(np.int32)], 1)
+        self.land = land & (1 - deck)
+        self.counted = (1 - deck).astype(bool)  # pixels that may vote
+        # disc offsets are cached per radius in pixels
+        self._discs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._nearest = None  # (distance px, nearest land indices), computed on first use
+
+    def _disc(self, r_px: int):
+        if r_px not in self._discs:
+            yy, xx = np.mgrid[-r_px:r_px + 1, -r_px:r_px + 1]
+            keep = xx * xx + yy * yy <= r_px * r_px
+            self._discs[r_px] = (yy[keep], xx[keep])
+        return self._discs[r_px]
 
     def land_fraction(self, p: np.ndarray, radius_m: float) -> float:
         g = self.grid
-        r = max(radius_m, g.gsd_m)
-        n = max(3, int(2 * r / g.gsd_m))
-        xs = np.linspace(p[0] - r, p[0] + r, n)
-        gx, gy = np.meshgrid(xs, np.linspace(p[1] - r, p[1] + r, n))
-        gx, gy = gx.ravel(), gy.ravel()
-        keep = (gx - p[0]) ** 2 + (gy - p[1]) ** 2 <= r * r
-        if self.union is not None:
-            keep &= ~self._contains(self.union, gx, gy)
-        if not keep.any():
+        col, row = g.to_pixel(p[0], p[1])
+        dy, dx = self._disc(max(1, int(round(radius_m / g.gsd_m))))
+        r = np.floor(row).astype(int) + dy
+        c = np.floor(col).astype(int) + dx
+        inside = (r >= 0) & (r < g.height_px) & (c >= 0) & (c < g.width_px)
+        r, c = r[inside], c[inside]
+        if r.size == 0:
             return 0.0
-        col, row = g.to_pixel(gx[keep], gy[keep])
-        inside = (col >= 0) & (col < g.width_px) & (row >= 0) & (row < g.height_px)
-        if not inside.any():
+        vote = self.counted[r, c]
+        if not vote.any():
             return 0.0
-        ids = self.cm.ids[row[inside].astype(int), col[inside].astype(int)]
-        return float(np.mean(ids != WATER))
+        return float(self.land[r, c][vote].mean())
 
     def is_land(self, p: np.ndarray, radius_m: float) -> bool:
         return self.land_fraction(p, radius_m) >= 0.3
@@ -171,14 +182,29 @@ def _components(boxes: list[PierBox], tol: float = 0.4) -> list[list[int]]:
 
 
 def _nearest_land(probe: LandProbe, start: np.ndarray, max_dist: float, step: float) -> np.ndarray | None:
-    """The nearest land point from ``start`` within ``max_dist`` (search on rings of directions)."""
-    for rad in np.arange(step, max_dist + step, step):
-        angles = np.linspace(0, 2 * np.pi, max(16, int(2 * np.pi * rad / step)), endpoint=False)
-        for t in angles:
-            q = start + rad * np.array([np.cos(t), np.sin(t)])
-            if probe.is_land(q, step):
-                return q
-    return None
+    """The nearest land point from ``start`` within ``max_dist``: one exact distance transform of the land
+    mask (opened so single stray pixels do not count), with the index of the nearest land pixel."""
+    g = probe.grid
+    if probe._nearest is None:
+        import cv2
+        from scipy.ndimage import distance_transform_edt
+
+        solid = cv2.morphologyEx(probe.land, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        if not solid.any():
+            probe._nearest = (np.full(g.shape, np.inf), None)
+        else:
+            dist, idx = distance_transform_edt(solid == 0, return_indices=True)
+            probe._nearest = (dist, idx)
+    dist, idx = probe._nearest
+    if idx is None:
+        return None
+    col, row = g.to_pixel(start[0], start[1])
+    r = int(np.clip(np.floor(row), 0, g.height_px - 1))
+    c = int(np.clip(np.floor(col), 0, g.width_px - 1))
+    if dist[r, c] * g.gsd_m > max_dist:
+        return None
+    x, y = g.to_scene(idx[1][r, c] + 0.5, idx[0][r, c] + 0.5)
+    return np.array([float(x), float(y)])
 
 
 def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finger_asset, config: PierConfig,
@@ -193,21 +219,9 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     boxes, ext = _extend(boxes, probe, config, step)
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
-    # a structure that still does not reach land gets a connecting walkway to the nearest land
-    for comp in list(comps):
-        if any(probe.is_land(end, boxes[i].width_m / 2 + 0.5) for i in comp for end in boxes[i].ends()):
-            continue
-        best = None
-        for i in comp:
-            for end in boxes[i].ends():
-                q = _nearest_land(probe, end, 4 * config.max_gap_m, step * 2)
-                if q is not None and (best is None or np.linalg.norm(q - end) < best[0]):
-                    best = (float(np.linalg.norm(q - end)), end, q, boxes[i].width_m)
-        if best is not None:
-            _, end, q, w = best
-            u = (q - end) / max(np.linalg.norm(q - end), 1e-6)
-            boxes.append(box_from_ends(end - u * 0.3, q + u * 0.5, max(w, 1.5), "connector", 0.5))
-            ext.append(0.0)
+    # a structure that still does not reach land gets a connecting walkway to whatever is nearer: land, or a
+    # structure that reaches land (detectors often break one long walkway into pieces)
+    _connect_floating(boxes, ext, comps, probe, config, step)
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
     on_land = tuple(any(probe.is_land(end, boxes[i].width_m / 2 + 0.5) for i in comp for end in boxes[i].ends())
@@ -224,6 +238,49 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
         "extended_m": [round(e, 2) for e in ext],
     }
     return PierResult(tuple(objects), tuple(boxes), tuple(tuple(c) for c in comps), on_land, tuple(ext), report)
+
+
+def _reaches_land(boxes: list[PierBox], comp: list[int], probe: LandProbe) -> bool:
+    return any(probe.is_land(end, boxes[i].width_m / 2 + 0.5) for i in comp for end in boxes[i].ends())
+
+
+def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[int]], probe: LandProbe,
+                      config: PierConfig, step: float) -> None:
+    from shapely.geometry import Point
+    from shapely.ops import nearest_points, unary_union
+
+    limit = 8 * config.max_gap_m
+    grounded = [c for c in comps if _reaches_land(boxes, c, probe)]
+    floating = [c for c in comps if c not in grounded]
+    # nearest first, so a chain of floating pieces grows outwards from the shore
+    while floating:
+        best = None
+        for comp in floating:
+            shape = unary_union([boxes[i].polygon() for i in comp])
+            w = max(1.5, max(boxes[i].width_m for i in comp))
+            for i in comp:
+                for end in boxes[i].ends():
+                    q = _nearest_land(probe, end, limit, step)
+                    if q is not None:
+                        d = float(np.linalg.norm(q - end))
+                        if best is None or d < best[0]:
+                            best = (d, comp, end, q, w, True)
+            for g in grounded:
+                gshape = unary_union([boxes[j].polygon() for j in g])
+                a, b = nearest_points(shape, gshape)
+                d = a.distance(b)
+                if d <= limit and (best is None or d < best[0]):
+                    best = (d, comp, np.array(a.coords[0]), np.array(b.coords[0]), w, False)
+        if best is None:
+            break
+        d, comp, a, b, w, to_land = best
+        u = (b - a) / max(np.linalg.norm(b - a), 1e-6)
+        into = max(1.5, w) if to_land else 0.3  # reach well onto land; just touch another deck
+        boxes.append(box_from_ends(a - u * 0.3, b + u * into, w, "connector", 0.5))
+        ext.append(0.0)
+        floating.remove(comp)
+        grounded.append(comp + [len(boxes) - 1])
+    del Point
 
 
 def _chain(b: PierBox, asset, prefix: str, structure: int, water_level_m: float) -> list[SceneObject]:

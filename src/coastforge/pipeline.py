@@ -242,7 +242,8 @@ def _write_stage_outputs(out: Path, image: GeoImage, cleaned: np.ndarray, class_
 
     write_png(out / "cleaned.png", cleaned)
     write_segmentation(out / "segmentation", class_map, image)
-    atomic_write_text(out / "detections.json", json.dumps(detections_to_json(dets, image.grid), indent=1))
+    g = image.grid
+    atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
     try:
         from .terrain.outputs import write_terrain_outputs
     except ImportError:
