@@ -28,6 +28,7 @@ demo: $(VENV)/.installed-core
 	$(PY) -m coastforge.demo --out $(DEMO_OUT)
 
 test: $(VENV)/.installed-test
+	./scripts/install-test-tools.sh
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
 clean:
