@@ -19,7 +19,6 @@ import trimesh
 from .classes import N_CLASSES, WATER
 from .errors import InputError
 from .render_objects import (
-    ObjectLayer,
     PixelGrid,
     composite_instances,
     heightfield_shadow,
@@ -239,34 +238,45 @@ def _background(
     return sh
 
 
+def _objects_and_shadows(
+    instances, grid: PixelGrid, floor_z, surface_z, lighting: Lighting, shadows: bool = True
+):
+    """Composite the instances, then their soft shadows (and the terrain's) and the contact darkening.
+    Independent of the terrain colours, so it runs beside the terrain shading. Returns (obj, sh, ao)."""
+    obj = composite_instances(instances, grid, floor_z, surface_z)
+    sh = ao = None
+    if obj.n_instances or shadows:
+        sun = sun_vector(lighting.sun_azimuth_deg, lighting.sun_elevation_deg)
+        hard = heightfield_shadow(obj.height, grid, sun)
+        sig_px = max((0.04 + 0.3 * float(lighting.shadow_softness)) / grid.gsd, 0.3)
+        sh = cv2.GaussianBlur(hard, (0, 0), sig_px)
+    if obj.n_instances:  # contact darkening (ambient occlusion) around objects on the ground or afloat
+        ao = cv2.GaussianBlur(obj.alpha, (0, 0), max(0.5 / grid.gsd, 0.7))
+        ao = 1.0 - 0.3 * ao * (1.0 - obj.alpha)
+    return obj, sh, ao
+
+
 def _objects_over(
     shaded: _Shaded,
-    grid: PixelGrid,
     water,
-    obj: ObjectLayer,
+    layers,
     lighting: Lighting,
     water_level: float = 0.0,
-    terrain_shadows: bool = True,
 ) -> np.ndarray:
-    """Instances over the shaded background, with soft cast shadows from the combined height field.
-    Returns the planar float image (3, H, W)."""
+    """Instances and soft cast shadows (``layers`` from ``_objects_and_shadows``) over the shaded
+    background. Returns the planar float image (3, H, W)."""
+    obj, sh, ao = layers
     sun = sun_vector(lighting.sun_azimuth_deg, lighting.sun_elevation_deg)
     sun_rgb, sky_rgb = _sun_colours(lighting)
     amb = float(np.clip(lighting.ambient, 0.0, 1.0))
     ref = amb + (1 - amb) * (0.5 * sun[2] + 0.5 * 0.82)
     img = shaded.lit.copy()
-    if not obj.n_instances and not terrain_shadows:
+    if sh is None:
         return img
-    hard = heightfield_shadow(obj.height, grid, sun)
-    sig_px = max((0.04 + 0.3 * float(lighting.shadow_softness)) / grid.gsd, 0.3)
-    sh = cv2.GaussianBlur(hard, (0, 0), sig_px)
-    ao = None
-    if obj.n_instances:  # contact darkening (ambient occlusion) around objects on the ground or afloat
-        ao = cv2.GaussianBlur(obj.alpha, (0, 0), max(0.5 / grid.gsd, 0.7))
-        ao = 1.0 - 0.3 * ao * (1.0 - obj.alpha)
-        touched = np.flatnonzero((sh > 1e-3) | (ao < 0.999))
+    if ao is not None:
+        touched = np.flatnonzero((sh > 4e-3) | (ao < 0.995))  # below ~1 grey level: skip
     else:
-        touched = np.flatnonzero(sh > 1e-3)
+        touched = np.flatnonzero(sh > 4e-3)
     imf = img.reshape(3, -1)
     if len(touched):
         s = sh.reshape(-1)[touched][None]
@@ -371,13 +381,13 @@ def render_topdown(
     # the instance compositing loop is mostly Python (holds the GIL) while terrain shading is mostly large
     # numpy/OpenCV operations (release it): running both at once keeps two cores busy
     with ThreadPoolExecutor(max_workers=1) as pool:
-        fut = pool.submit(composite_instances, list(instances), grid, z, surface_z)
+        fut = pool.submit(_objects_and_shadows, list(instances), grid, z, surface_z, lighting)
         albedo, relief = terrain_albedo(cls, grid, noise, seed, sun, water)
         ndl = hillshade(z, grid, sun)
         shaded = _background(grid, albedo, relief, ndl, water, depth, lighting, seed, noise)
         del albedo, relief, ndl
-        obj = fut.result()
-    img = _objects_over(shaded, grid, water, obj, lighting, water_level=wl)
+        layers = fut.result()
+    img = _objects_over(shaded, water, layers, lighting, water_level=wl)
     return _finish(img, lighting, grid, noise)
 
 
@@ -484,8 +494,8 @@ def render_mesh_view(
     shaded, water, noise = bg
     floor = np.full(shape, -50.0 if background == "water" else float(b[0, 2]), F32)
     surface_z = np.full(shape, 0.0 if background == "water" else float(b[0, 2]), F32)
-    obj = composite_instances([inst], grid, floor, surface_z)
-    img = _objects_over(shaded, grid, water, obj, lighting, terrain_shadows=False)
+    layers = _objects_and_shadows([inst], grid, floor, surface_z, lighting, shadows=False)
+    img = _objects_over(shaded, water, layers, lighting)
     return _finish(img, lighting, grid, noise)
 
 

@@ -235,8 +235,10 @@ def main(argv: list[str] | None = None) -> None:
         import resource
 
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-        print(f"{size}x{size} (gsd {gsd:.3f} m): {dt:.2f} s wall, {dc:.2f} s CPU (all threads), "
-              f"peak RSS so far {peak:.0f} MB")
+        print(
+            f"{size}x{size} (gsd {gsd:.3f} m): {dt:.2f} s wall, {dc:.2f} s CPU (all threads), "
+            f"peak RSS so far {peak:.0f} MB"
+        )
         if args.preview:
             from pathlib import Path
 
