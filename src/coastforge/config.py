@@ -94,6 +94,7 @@ class DetectConfig:
     struct_dc: float = 10.0  # ... or of another colour by this
     boat_mask: str = "core"  # core: bright/coloured cores grown by watershed | struct: all structure
     boat_core_dl: float = 70.0
+    boat_core_headroom: float = 0.55  # ... at most this fraction of (255 - water L) on light water
     boat_core_dc: float = 14.0
     boat_region_dl: float = 30.0
     boat_region_dc: float = 12.0
@@ -122,6 +123,10 @@ class DetectConfig:
     vehicle_water_gap_m: float = 3.0
     vehicle_hat_m: float = 3.2  # top-hat disc: wider than a car, narrower than two
     vehicle_dl: float = 40.0
+    vehicle_dc: float = 25.0  # ... or this much more colourful than the ground (chroma top-hat)
+    vehicle_ground_chroma: float = 20.0  # paved ground around a car is this grey ...
+    vehicle_ground_frac: float = 0.25  # ... on at least this fraction of a ring 1 m round it
+    vehicle_shadow_m: float = 2.0  # dark blobs this close to vegetation are taken for tree shadows
     vehicle_pitch_m: float = 2.6  # centre spacing of cars parked side by side
 
 
@@ -134,6 +139,7 @@ class LibraryConfig:
     backgrounds: tuple[str, ...] = ("water", "ground")
     embed_scales: tuple[float, ...] = (1.0, 2.0, 4.0)  # views are also embedded downsampled (coarse queries)
     workers: int = 0  # build processes; 0 = one per core (at most 4)
+    paint_variants: bool = True  # also embed vehicles and small boats repainted in common body colours
 
 
 @dataclass(frozen=True)

@@ -178,3 +178,35 @@ def write_overlay(path: str | Path, rgb: np.ndarray, detections: list[Detection]
 def with_mask_dropped(dets: list[Detection]) -> list[Detection]:
     """Detections without their masks (smaller to keep around)."""
     return [replace(d, mask=None, mask_origin_px=None) for d in dets]
+
+
+def detect_file(image_path: str | Path, out: str | Path, gsd_m: float | None = None,
+                size_m: tuple[float, float] | None = None, backend: str | None = None,
+                weights: str | Path | None = None, overlay: str | Path | None = None, overwrite: bool = False,
+                config=None) -> list[Detection]:
+    """``coastforge detect``: read an image, detect, write the JSON (and the overlay PNG), atomically."""
+    import time
+
+    from ..config import Config
+    from ..fsio import atomic_write_text, check_writable_file
+    from ..io import read_image
+
+    cfg = config or Config()
+    out = Path(out)
+    check_writable_file(out, overwrite)
+    if overlay is not None:
+        check_writable_file(overlay, overwrite)
+    image = read_image(image_path, gsd_m=gsd_m, size_m=size_m, config=cfg.io)
+    opts: dict[str, Any] = {}
+    if weights is not None:
+        opts["weights"] = weights
+    name = backend or cfg.detect.backend
+    t0 = time.perf_counter()
+    dets = detect(image, cfg.detect, backend=name, seed=cfg.seed, **opts)
+    dt = time.perf_counter() - t0
+    prov = {"backend": name, "seconds": round(dt, 3), "image": str(image_path)}
+    atomic_write_text(out, detections_to_json(dets, image.grid.gsd_m, (image.grid.width_px, image.grid.height_px),
+                                              prov))
+    if overlay is not None:
+        write_overlay(overlay, image.rgb, dets)
+    return dets
