@@ -1,7 +1,7 @@
 """report.html: what a user looks at — one self-contained page that works offline from the file system.
 
-Images are embedded as data URIs, the 3D preview is the scene's GLB (base64) shown by a vendored three.js
-bundle (classic script: browsers refuse module imports from file:// pages). Nothing is fetched.
+Images are embedded as data URIs; the 3D preview is the scene's GLB (base64) shown by a vendored three.js
+bundle (a classic script: browsers refuse ES-module imports from file:// pages). Nothing is fetched.
 """
 
 from __future__ import annotations
@@ -10,25 +10,41 @@ import base64
 import html
 import io
 import json
+import time
 from importlib import resources
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
-from .classes import CLASS_NAMES, EVALUATED_CATEGORIES, PALETTE, WATER, colorize
+from .classes import CLASS_NAMES, EVALUATED_CATEGORIES, N_CLASSES, PALETTE, colorize
+from .errors import InputError, OutputExistsError
 from .fsio import atomic_write_text
-from .scene import Scene, load_scene
+from .scene import Scene, SceneObject, load_scene
 
-MAX_PX = 1400  # images are shown at most this wide: keeps a 100-object report far under 15 MB
+MAX_PX = 1400  # big pictures are shown at most this wide: keeps a 100-object report far under 15 MB
+THUMB_PX = 96  # crop / asset thumbnails in the objects table
 SECTIONS = ("overview", "classes", "detections", "objects", "terrain", "piers", "vegetation", "metrics", "provenance",
             "preview3d")
+TITLES = {"overview": "Input and generated scene", "classes": "Terrain classes", "detections": "Detections",
+          "objects": "Objects and their assets", "terrain": "Height map and shore profile",
+          "piers": "Pier structures", "vegetation": "Vegetation density per class",
+          "metrics": "Metrics against the truth", "provenance": "Timings, command and versions",
+          "preview3d": "3D preview"}
+DET_COLOURS = {"boat": (255, 90, 40), "vehicle": (255, 215, 0), "pier_walkway": (40, 200, 255),
+               "pier_finger": (120, 255, 200), "buoy": (255, 0, 255)}
+SHORE_COLOURS = {"sand": "#d9a84e", "rocks": "#6b5e55", "wall": "#444444", "vegetation": "#3c8c3c",
+                 "grass": "#3c8c3c", "dirt": "#8c643c"}
+
+
+# ----------------------------------------------------------------------------- small helpers
 
 
 def _data_uri(rgb: np.ndarray, fmt: str = "jpeg", quality: int = 85) -> str:
     import cv2
 
-    a = rgb if rgb.ndim == 2 else rgb[:, :, ::-1]
-    ok, buf = cv2.imencode(".jpg" if fmt == "jpeg" else ".png", np.ascontiguousarray(a),
+    a = rgb if rgb.ndim == 2 else np.ascontiguousarray(rgb[:, :, ::-1])
+    ok, buf = cv2.imencode(".jpg" if fmt == "jpeg" else ".png", a,
                            [cv2.IMWRITE_JPEG_QUALITY, quality] if fmt == "jpeg" else [])
     if not ok:
         raise OSError("could not encode an image for the report")
@@ -42,58 +58,20 @@ def _fit(rgb: np.ndarray, max_px: int = MAX_PX) -> np.ndarray:
     s = min(1.0, max_px / max(h, w))
     if s >= 1.0:
         return rgb
-    return cv2.resize(rgb, (max(1, int(w * s)), max(1, int(h * s))), interpolation=cv2.INTER_AREA)
+    return cv2.resize(rgb, (max(1, round(w * s)), max(1, round(h * s))), interpolation=cv2.INTER_AREA)
 
 
-def _fig_uri(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt
+def _upscale_small(rgb: np.ndarray, min_px: int = 700) -> np.ndarray:
+    """Small images (tests, tiny scenes) upscaled with nearest pixels, so overlays drawn on them stay legible."""
+    import cv2
 
-    plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _img(uri: str, caption: str, cls: str = "") -> str:
-    return (f'<figure class="{cls}"><img src="{uri}" alt="{html.escape(caption)}"/>'
-            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    f = int(np.ceil(min_px / max(rgb.shape[:2])))
+    if f <= 1:
+        return rgb
+    return cv2.resize(rgb, (rgb.shape[1] * f, rgb.shape[0] * f), interpolation=cv2.INTER_NEAREST)
 
 
-def _table(header: list[str], rows: list[list], cls: str = "") -> str:
-    th = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
-    return f'<table class="{cls}"><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>'
-
-
-def _fmt(v, nd=3) -> str:
-    if v is None:
-        return "—"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        return f"{v:.{nd}f}"
-    return html.escape(str(v))
-
-
-def _input_image(scene: Scene, scene_dir: Path) -> np.ndarray | None:
-    from .fsio import read_png
-
-    src = scene.provenance.get("input", {}).get("image")
-    for cand in ([Path(src)] if src else []) + [scene_dir / "image.png"]:
-        if cand.is_file():
-            try:
-                import cv2
-
-                a = cv2.imread(str(cand), cv2.IMREAD_COLOR)
-                if a is not None:
-                    return a[:, :, ::-1].copy()
-            except Exception:  # noqa: BLE001 - an unreadable input only drops a picture from the report
-                pass
-    p = scene_dir / "cleaned.png"
-    return read_png(p) if p.is_file() else None
-
-
-def _resize_to(a: np.ndarray, shape: tuple[int, int], nearest=False) -> np.ndarray:
+def _resize_to(a: np.ndarray, shape: tuple[int, int], nearest: bool = False) -> np.ndarray:
     import cv2
 
     if a.shape[:2] == shape:
@@ -101,8 +79,124 @@ def _resize_to(a: np.ndarray, shape: tuple[int, int], nearest=False) -> np.ndarr
     return cv2.resize(a, (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST if nearest else cv2.INTER_AREA)
 
 
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _fig_uri(fig) -> str:
+    plt = _plt()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _img(uri: str, caption: str, cls: str = "") -> str:
+    return (f'<figure class="{cls}"><img src="{uri}" alt="{html.escape(caption)}" title="click to enlarge"/>'
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+
+def _table(header: list[str], rows: list[list], cls: str = "") -> str:
+    th = "".join(f"<th>{h}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    return f'<table class="{cls}"><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>'
+
+
+def _fmt(v, nd: int = 3) -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, (float, np.floating)):
+        return "—" if not np.isfinite(v) else f"{float(v):.{nd}f}"
+    return html.escape(str(v))
+
+
+def _note(text: str) -> str:
+    return f'<p class="note">{text}</p>'
+
+
+def _rgb_css(c) -> str:
+    return "rgb({},{},{})".format(*(int(v) for v in c))
+
+
+# ----------------------------------------------------------------------------- inputs
+
+
+def _read_rgb(path: Path) -> np.ndarray | None:
+    import cv2
+
+    a = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    return None if a is None else a[:, :, ::-1].copy()
+
+
+def _input_image(scene: Scene, scene_dir: Path) -> tuple[np.ndarray | None, str]:
+    """The input image (from provenance, else image.png beside the scene) and where it came from."""
+    src = (scene.provenance.get("input") or {}).get("image")
+    cands = []
+    if src:
+        p = Path(src)
+        cands += [p] if p.is_absolute() else [p, scene_dir / p]
+    cands.append(scene_dir / "image.png")
+    for c in cands:
+        if c.is_file():
+            a = _read_rgb(c)
+            if a is not None:
+                return a, str(c)
+    return None, ""
+
+
+def _detections(scene_dir: Path) -> list[dict]:
+    p = scene_dir / "detections.json"
+    if not p.is_file():
+        return []
+    try:
+        return list(json.loads(p.read_text()).get("detections", []))
+    except (ValueError, AttributeError):
+        return []
+
+
+def match_objects_to_decisions(objects: list[SceneObject], matches: list[dict]) -> dict[str, dict]:
+    """Object id → its entry of ``provenance["matches"]``.
+
+    An explicit link wins (``attrs["match"]``: the decision's detection ``index``); otherwise objects made
+    from detections are paired with the decisions in order (generate places them in decision order), and
+    an object whose asset disagrees takes the first unused decision with its asset and the closest yaw."""
+    by_det = {m.get("index"): m for m in matches if isinstance(m, dict)}
+    out: dict[str, dict] = {}
+    used: set[int] = set()
+    rest = []
+    for o in objects:
+        k = o.attrs.get("match")
+        m = by_det.get(k) if isinstance(k, int) else None
+        if m is not None and m.get("asset_id") == o.asset_id:
+            out[o.id] = m
+            used.add(id(m))
+        elif o.source == "detection":
+            rest.append(o)
+    free = [m for m in matches if isinstance(m, dict) and id(m) not in used]
+    j = 0
+    for o in rest:
+        if j < len(free) and free[j].get("asset_id") == o.asset_id and id(free[j]) not in used:
+            m = free[j]
+            j += 1
+        else:
+            same = [m for m in free if id(m) not in used and m.get("asset_id") == o.asset_id]
+            if not same:
+                continue
+            m = min(same, key=lambda m: abs(((float(m.get("yaw_deg", 0)) - o.yaw_deg + 180) % 360) - 180))
+        out[o.id] = m
+        used.add(id(m))
+    return out
+
+
 class _Assets:
-    """Meshes and views of the scene's assets: its library when it can be loaded, else the starter kit."""
+    """Meshes and top views of the scene's assets: its library when it can be loaded, else the starter kit."""
 
     def __init__(self, scene: Scene):
         self.lib = None
@@ -110,32 +204,40 @@ class _Assets:
         try:
             from .assets import library as lib_mod
 
-            if lib_path and lib_path != "starter-kit" and Path(lib_path).is_dir():
+            if lib_path and lib_path not in ("starter-kit", "kit") and Path(lib_path).is_dir():
                 self.lib = lib_mod.Library.load(lib_path)
             else:
                 self.lib = lib_mod.default_library()
         except Exception:  # noqa: BLE001 - the report still renders without asset pictures
             self.lib = None
+        self._views: dict = {}
 
     def mesh(self, asset_id: str):
         if self.lib is not None:
             try:
                 return self.lib.mesh(asset_id)
-            except Exception:  # noqa: BLE001
+            except Exception:  # noqa: BLE001 - fall back to the kit below
                 pass
         from .assets.kit import load_kit_mesh
 
         return load_kit_mesh(asset_id)
 
-    def view(self, asset_id: str, background: str):
-        if self.lib is None:
-            return None
-        try:
-            from .matching import asset_top_view
+    def view(self, asset_id: str, background: str) -> np.ndarray | None:
+        key = (asset_id, background)
+        if key not in self._views:
+            v = None
+            if self.lib is not None:
+                try:
+                    from .matching import asset_top_view
 
-            return asset_top_view(self.lib, asset_id, background)[0]
-        except Exception:  # noqa: BLE001
-            return None
+                    v = asset_top_view(self.lib, asset_id, background)[0]
+                except Exception:  # noqa: BLE001 - an asset without a view only loses its thumbnail
+                    v = None
+            self._views[key] = v
+        return self._views[key]
+
+
+# ----------------------------------------------------------------------------- sections
 
 
 def _render_top(scene: Scene, assets: _Assets) -> np.ndarray | None:
@@ -145,116 +247,273 @@ def _render_top(scene: Scene, assets: _Assets) -> np.ndarray | None:
         return None
     w, h = scene.extent_m
     gsd = max(scene.gsd_m, max(w, h) / MAX_PX)
-    mesh_cache: dict = {}
+    cache: dict = {}
 
     def mesh_for(aid):
-        if aid not in mesh_cache:
-            mesh_cache[aid] = assets.mesh(aid)
-        return mesh_cache[aid]
+        if aid not in cache:
+            cache[aid] = assets.mesh(aid)
+        return cache[aid]
 
-    return render_scene(scene, mesh_for, gsd, seed=scene.seed)
+    try:
+        return render_scene(scene, mesh_for, gsd, seed=scene.seed)
+    except Exception:  # noqa: BLE001 - no top render (e.g. a missing mesh) rather than no report
+        return None
 
 
-def _draw_detections(img: np.ndarray, scene_dir: Path, scale: float) -> np.ndarray:
+def _overview(image, top) -> str:
+    row = []
+    if image is not None:
+        row.append(_img(_data_uri(_fit(image)), "Input image"))
+    if top is not None:
+        row.append(_img(_data_uri(_fit(top)), "Generated scene rendered from above (terrain, assets, vegetation)"))
+    if not row:
+        return _note("Neither the input image nor a render is available.")
+    return '<div class="pair">' + "".join(row) + "</div>"
+
+
+def _classes_section(scene: Scene, base: np.ndarray | None, scene_dir: Path) -> str:
+    if scene.classes is None:
+        return _note("No class map.")
+    grid = scene.grid
+    counts = np.bincount(scene.classes.ravel(), minlength=N_CLASSES)
+    total = max(int(counts.sum()), 1)
+    legend = '<div class="legend">' + "".join(
+        f'<span><i style="background:{_rgb_css(PALETTE[c])}"></i>{CLASS_NAMES[c]} '
+        f'<small>{100 * counts[c] / total:.1f}% · {counts[c] * grid.gsd_m ** 2:,.0f} m²</small></span>'
+        for c in range(N_CLASSES) if counts[c]) + "</div>"
+    cm = colorize(scene.classes)
+    if base is not None:
+        cm = _resize_to(cm, base.shape[:2], nearest=True)
+        # the class map sits on the image; a slider fades between them
+        overlay = ('<figure><div class="stack"><img src="' + _data_uri(base) + '" alt="input image"/>'
+                   '<img class="top" id="classmap-img" style="opacity:.55" src="' + _data_uri(cm, "png") +
+                   '" alt="class map"/></div><figcaption>Terrain classes over the image — opacity '
+                   '<input type="range" id="classmap-opacity" min="0" max="100" value="55"/></figcaption></figure>')
+    else:
+        overlay = _img(_data_uri(_fit(cm), "png"), "Terrain classes")
+    figs = [overlay]
+    cleaned = scene_dir / "cleaned.png"
+    if cleaned.is_file():
+        c = _read_rgb(cleaned)
+        if c is not None:
+            figs.append(_img(_data_uri(_fit(c)), "Cleaned image (boats and vehicles removed, inpainted)"))
+    return legend + '<div class="pair">' + "".join(figs) + "</div>"
+
+
+def _draw_detections(img: np.ndarray, dets: list[dict], scale: float, labels: dict[int, str]) -> np.ndarray:
     import cv2
 
     out = img.copy()
-    p = scene_dir / "detections.json"
-    if not p.is_file():
-        return out
-    dets = json.loads(p.read_text()).get("detections", [])
-    colours = {"boat": (255, 80, 40), "vehicle": (255, 220, 0), "pier_walkway": (60, 200, 255),
-               "pier_finger": (120, 255, 200), "buoy": (255, 0, 255)}
-    for d in dets:
-        c = colours.get(d["category"], (255, 255, 255))
-        pts = np.round(np.array(d["corners_px"]) * scale).astype(np.int32)
-        cv2.polylines(out, [pts], True, c, 1, cv2.LINE_AA)
+    th = max(1, round(out.shape[1] / 700))
+    for i, d in enumerate(dets):
+        try:
+            c = DET_COLOURS.get(d["category"], (255, 255, 255))
+            pts = np.round(np.asarray(d["corners_px"], float) * scale).astype(np.int32)
+            cx, cy = float(d["cx_px"]) * scale, float(d["cy_px"]) * scale
+        except (KeyError, TypeError, ValueError):
+            continue
+        cv2.polylines(out, [pts], True, c, th, cv2.LINE_AA)
         if d["category"] in ("boat", "vehicle"):
-            r = np.deg2rad(d["yaw_deg"])
-            cx, cy = d["cx_px"] * scale, d["cy_px"] * scale
-            L = d["length_px"] * scale * 0.6
-            tip = (int(cx + np.cos(r) * L), int(cy - np.sin(r) * L))
-            cv2.arrowedLine(out, (int(cx), int(cy)), tip, c if d.get("heading_known") else (200, 200, 200), 1,
-                            cv2.LINE_AA, tipLength=0.35)
+            r = np.deg2rad(float(d.get("yaw_deg", 0.0)))
+            ln = max(float(d.get("length_px", 10)) * scale * 0.75, 8.0)
+            tip = (round(cx + np.cos(r) * ln), round(cy - np.sin(r) * ln))  # image rows point south
+            known = bool(d.get("heading_known"))
+            cv2.arrowedLine(out, (round(cx), round(cy)), tip, c if known else (235, 235, 235), th + 1,
+                            cv2.LINE_AA, tipLength=0.3)
+        if i in labels:
+            org = (round(pts[:, 0].max()) + 2, round(pts[:, 1].min()) + 8)
+            cv2.putText(out, labels[i], org, cv2.FONT_HERSHEY_SIMPLEX, 0.38 * th, (0, 0, 0), th + 2, cv2.LINE_AA)
+            cv2.putText(out, labels[i], org, cv2.FONT_HERSHEY_SIMPLEX, 0.38 * th, (255, 255, 255), th, cv2.LINE_AA)
     return out
 
 
-def _objects_table(scene: Scene, image: np.ndarray | None, assets: _Assets) -> str:
+def _detections_section(base, dets, scale, labels) -> str:
+    if base is None:
+        return _note("The input image is not available.")
+    if not dets:
+        return _note("No detections.json in the scene folder (or no detections).")
+    cats: dict[str, int] = {}
+    for d in dets:
+        cats[d.get("category", "?")] = cats.get(d.get("category", "?"), 0) + 1
+    known = sum(1 for d in dets if d.get("category") in ("boat", "vehicle") and d.get("heading_known"))
+    movable = sum(1 for d in dets if d.get("category") in ("boat", "vehicle"))
+    legend = '<div class="legend">' + "".join(
+        f'<span><i style="background:{_rgb_css(DET_COLOURS.get(k, (255, 255, 255)))}"></i>{html.escape(k)} '
+        f"<small>{v}</small></span>" for k, v in sorted(cats.items())) + "</div>"
+    return (legend + _note(f"{len(dets)} detections; heading known for {known} of {movable} boats/vehicles "
+                           "(coloured arrow: known heading, white arrow: heading from the asset or unresolved). "
+                           "Labels are the row numbers of the objects table.")
+            + _img(_data_uri(_draw_detections(base, dets, scale, labels)), "Detections with heading arrows", "wide"))
+
+
+def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict], dets: list[dict]) -> tuple[str, str]:
+    """The objects table and the CSS holding each asset view once (rows refer to it by class)."""
     from .matching import crop_rotated
 
-    matches = {m["asset_id"] + f"@{i}": m for i, m in enumerate(scene.provenance.get("matches", []))}
-    by_index = scene.provenance.get("matches", [])
     objs = [o for o in scene.objects if o.category in EVALUATED_CATEGORIES]
-    rows = []
+    if not objs:
+        return _note("No boats, vehicles or buoys were placed."), ""
     grid = scene.grid
     img_scale = (image.shape[1] / grid.width_px) if image is not None else 1.0
-    views: dict = {}
+    img_gsd = grid.gsd_m / img_scale
+    css: dict[tuple[str, str], str] = {}
+
+    def asset_thumb(aid: str, bg: str, small: bool = False) -> str:
+        key = (aid, bg)
+        if key not in css:
+            v = assets.view(aid, bg)
+            css[key] = "" if v is None else _data_uri(_resize_to(v, (THUMB_PX, THUMB_PX)))
+        if not css[key]:
+            return '<span class="muted">no view</span>'
+        n = list(css).index(key)
+        return f'<span class="av av{n}{" small" if small else ""}" title="{html.escape(aid)}"></span>'
+
+    rows = []
     for k, o in enumerate(objs):
-        crop_html = view_html = ""
+        m = links.get(o.id)
+        bg = "ground" if o.category == "vehicle" else "water"
+        crop_html = '<span class="muted">—</span>'
         if image is not None:
             col, row = grid.to_pixel(o.x_m, o.y_m)
-            side_m = max(o.length_m, o.width_m) * 1.4
-            side = int(np.clip(side_m / grid.gsd_m * img_scale, 8, 4000))
-            s = 72 / side
-            crop = crop_rotated(image, col * img_scale, row * img_scale, o.yaw_deg, 72, 72, s)
-            crop_html = f'<img class="thumb" src="{_data_uri(crop)}" alt="crop {html.escape(o.id)}"/>'
-        key = (o.asset_id, "ground" if o.category == "vehicle" else "water")
-        if key not in views:
-            v = assets.view(*key)
-            views[key] = None if v is None else _data_uri(_resize_to(v, (72, 72)))
-        if views[key]:
-            view_html = f'<img class="thumb" src="{views[key]}" alt="asset {html.escape(o.asset_id)}"/>'
-        m = by_index[k] if k < len(by_index) and by_index[k].get("asset_id") == o.asset_id else None
-        runners = ", ".join(f"{html.escape(c['asset_id'])} ({c['score']:.2f})" for c in (m or {}).get("candidates", [])[1:4])
-        rows.append([html.escape(o.id), crop_html, view_html, html.escape(o.asset_id), _fmt(o.score, 2),
-                     f"{o.length_m:.1f} × {o.width_m:.1f}", f"{o.yaw_deg:.0f}°",
-                     html.escape(str(o.attrs.get("heading", ""))), runners or "—"])
-    del matches
-    return _table(["id", "crop", "asset", "asset id", "score", "size (m)", "yaw", "heading", "runner-ups"], rows,
-                  "objects")
+            side_px = max(o.length_m, o.width_m, 1.0) * 1.3 / img_gsd  # the asset views' framing
+            crop = crop_rotated(image, float(col) * img_scale, float(row) * img_scale, o.yaw_deg, THUMB_PX,
+                                THUMB_PX, THUMB_PX / side_px)
+            crop_html = f'<img class="thumb" src="{_data_uri(crop, quality=80)}" alt="crop of {html.escape(o.id)}"/>'
+        runners = []
+        for c in (m or {}).get("candidates", [])[:4]:
+            if c.get("asset_id") == o.asset_id:
+                continue
+            runners.append(f'<div class="cand">{asset_thumb(c["asset_id"], bg, True)}'
+                           f'<span>{html.escape(str(c["asset_id"]))}<br/><small>{float(c.get("score", 0)):.3f}'
+                           f'</small></span></div>')
+            if len(runners) == 3:
+                break
+        det = dets[m["index"]] if m and isinstance(m.get("index"), int) and 0 <= m["index"] < len(dets) else {}
+        heading = (m or {}).get("heading_source") or o.attrs.get("heading") or "—"
+        rows.append([
+            f'<b>{k + 1}</b>', f'{html.escape(o.id)}<br/><small>{html.escape(o.category)}</small>',
+            crop_html, asset_thumb(o.asset_id, bg), html.escape(o.asset_id),
+            _fmt(float(m["score"]) if m and "score" in m else o.score, 3),
+            _fmt(det.get("score", o.attrs.get("detector_score")), 2),
+            f"{o.length_m:.1f} × {o.width_m:.1f}", f"{o.yaw_deg:.0f}°", html.escape(str(heading)),
+            '<div class="cands">' + "".join(runners) + "</div>" if runners else '<span class="muted">—</span>',
+        ])
+    linked = sum(1 for o in objs if o.id in links)
+    head = ["#", "object", "image crop", "chosen asset", "asset id", "match score", "det. score", "size L × W (m)",
+            "yaw", "heading from", "runner-up candidates (score)"]
+    note = _note(f"{len(objs)} objects; {linked} linked to their matching decision. Crops are rotated so the "
+                 "detected bow/front points right, like the asset views (seen from above at yaw 0).")
+    style = "".join(f".av{n}{{background-image:url({uri})}}" for n, uri in enumerate(css.values()) if uri)
+    return note + '<div class="scroll">' + _table(head, rows, "objects") + "</div>", style
 
 
-def _terrain_plots(scene: Scene) -> str:
-    import matplotlib
+def _terrain_cmap(dmax: float, hmax: float):
+    from matplotlib.colors import LinearSegmentedColormap, TwoSlopeNorm
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    cmap = LinearSegmentedColormap.from_list("coast", [
+        (0.0, "#08306b"), (0.3, "#2171b5"), (0.4999, "#9ecae1"), (0.5, "#e8d9a8"), (0.65, "#8fbf6a"),
+        (0.82, "#7a6a48"), (1.0, "#f2efe9")])
+    return cmap, TwoSlopeNorm(vmin=-dmax, vcenter=0.0, vmax=hmax)
+
+
+def _load_sections(scene_dir: Path) -> list[dict]:
+    p = scene_dir / "terrain_outputs" / "cross_section.json"
+    if not p.is_file():
+        return []
+    try:
+        secs = json.loads(p.read_text()).get("sections", [])
+        return [s for s in secs if len(s.get("distance_m", [])) >= 2 and len(s["distance_m"]) == len(s["height_m"])]
+    except (ValueError, AttributeError, KeyError, TypeError):
+        return []
+
+
+def _terrain_section(scene: Scene, scene_dir: Path) -> str:
+    if scene.height is None:
+        return _note("No height map.")
+    plt = _plt()
     from matplotlib.colors import LightSource
 
-    if scene.height is None:
-        return "<p>No height map.</p>"
     z = scene.height
-    step = max(1, int(max(z.shape) / 900))
-    zs = z[::step, ::step]
+    grid = scene.grid
+    step = max(1, int(np.ceil(max(z.shape) / 900)))
+    zs = np.nan_to_num(z[::step, ::step].astype(np.float64))
     w, h = scene.extent_m
-    fig, ax = plt.subplots(figsize=(7, 6))
-    ls = LightSource(azdeg=315, altdeg=45)
-    lim = float(max(abs(zs.min()), abs(zs.max()), 0.5))
-    cmap = plt.get_cmap("gist_earth")
-    rgb = ls.shade(zs, cmap=cmap, vert_exag=3, blend_mode="soft", vmin=-lim, vmax=lim,
-                   dx=scene.gsd_m * step, dy=scene.gsd_m * step)
-    ax.imshow(rgb, extent=(-w / 2, w / 2, -h / 2, h / 2))
-    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(-lim, lim))
-    fig.colorbar(sm, ax=ax, label="height (m), 0 = water level")
+    dmax = max(float(-zs.min()), 0.5)
+    hmax = max(float(zs.max()), 0.5)
+    cmap, norm = _terrain_cmap(dmax, hmax)
+    fig, ax = plt.subplots(figsize=(7.2, 6.2))
+    ls = LightSource(azdeg=315, altdeg=40)
+    rgb = ls.shade(zs, cmap=cmap, norm=norm, vert_exag=2, blend_mode="soft", dx=grid.gsd_m * step,
+                   dy=grid.gsd_m * step)
+    ax.imshow(rgb, extent=(-w / 2, w / 2, -h / 2, h / 2), interpolation="bilinear")
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=norm)
+    cb = fig.colorbar(sm, ax=ax, shrink=0.85, pad=0.02)
+    cb.set_label("height (m); 0 = water level, below 0 = bathymetry")
+    sections = _load_sections(scene_dir)
+    for s in sections:
+        (c0, r0), (c1, r1) = s["start_px"], s["end_px"]
+        x0, y0 = grid.to_scene(c0, r0)
+        x1, y1 = grid.to_scene(c1, r1)
+        col = SHORE_COLOURS.get(s["shore_type"], "#d62728")
+        ax.annotate("", xy=(x1, y1), xytext=(x0, y0), arrowprops=dict(arrowstyle="->", color=col, lw=2.2))
+        ax.plot([x0], [y0], "o", color=col, ms=5, mec="white")
+        ax.text(x0, y0, f" {s['shore_type']}", color="white", fontsize=9, fontweight="bold",
+                bbox=dict(facecolor=col, alpha=0.8, pad=1.5, lw=0))
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
-    ax.set_title("height map (hillshade)")
+    ax.set_title(f"Height map (hillshade): {float(z.min()):.1f} m to {float(z.max()):.1f} m")
     hill = _fig_uri(fig)
-    # shore cross-section: the row through the scene centre... and a column, whichever crosses the shore
-    fig, ax = plt.subplots(figsize=(7, 3))
-    drawn = False
-    for label, prof, axis_len in (("west→east through centre", z[z.shape[0] // 2, :], w),
-                                  ("south→north through centre", z[::-1, z.shape[1] // 2], h)):
-        if prof.min() < 0 < prof.max():
-            ax.plot(np.linspace(-axis_len / 2, axis_len / 2, prof.size), prof, label=label)
-            drawn = True
-    ax.axhline(0, color="#1f77b4", lw=0.8, ls="--", label="water level")
-    ax.set_xlabel("distance (m)")
+    fig, ax = plt.subplots(figsize=(7.2, 4.0))
+    if sections:
+        dmin = min(min(s["distance_m"]) for s in sections)
+        dmx = max(max(s["distance_m"]) for s in sections)
+        lo = min(min(s["height_m"]) for s in sections)
+        for s in sections:
+            d, hh = np.asarray(s["distance_m"], float), np.asarray(s["height_m"], float)
+            col = SHORE_COLOURS.get(s["shore_type"], None)
+            ax.plot(d, hh, color=col, lw=2, label=f"{s['shore_type']} shore")
+            ax.fill_between(d, hh, min(lo, 0) - 0.5, color=col or "#888", alpha=0.12)
+        ax.fill_between([dmin, dmx], [0, 0], min(lo, 0) - 0.5, color="#9ecae1", alpha=0.35, zorder=0,
+                        label="water")
+        ax.axvline(0, color="#555", lw=0.8, ls=":")
+        ax.set_xlim(dmin, dmx)
+        ax.set_ylim(min(lo, 0) - 0.5, None)
+        ax.set_xlabel("distance from the shoreline (m): ← inland | offshore →")
+        title = "Shore cross-sections (side view), one per shore type"
+        cap = "Shore cross-sections from the terrain stage (transects drawn as arrows on the hillshade)"
+    else:
+        # no transects from the terrain stage: the centre row and column, if they cross the shore
+        drawn = False
+        for label, prof, length in (("west → east through the centre", z[z.shape[0] // 2, :], w),
+                                    ("south → north through the centre", z[::-1, z.shape[1] // 2], h)):
+            if prof.min() < 0 < prof.max():
+                ax.plot(np.linspace(-length / 2, length / 2, prof.size), prof, lw=1.6, label=label)
+                drawn = True
+        ax.set_xlabel("position along the line (m)")
+        title = "Cross-section through the scene centre" + ("" if drawn else ": no line crosses the shore")
+        cap = "Cross-section through the scene centre (no terrain_outputs/cross_section.json found)"
+    ax.axhline(0, color="#1f77b4", lw=1, ls="--", label="water level")
     ax.set_ylabel("height (m)")
-    ax.set_title("shore cross-section (side view)" + ("" if drawn else ": no transect crosses the shore"))
-    ax.legend(fontsize=8)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
     sec = _fig_uri(fig)
-    return _img(hill, "Height map with land and bathymetry") + _img(sec, "Shore cross-section")
+    return '<div class="pair">' + _img(hill, "Height map with land and bathymetry") + _img(sec, cap) + "</div>"
+
+
+def _pier_graph(piers: list[SceneObject], tol_m: float = 0.5):
+    from shapely.geometry import Polygon
+
+    polys = []
+    for o in piers:
+        r = np.deg2rad(o.yaw_deg)
+        f = np.array([np.cos(r), np.sin(r)]) * o.length_m / 2
+        lft = np.array([-np.sin(r), np.cos(r)]) * o.width_m / 2
+        c = np.array([o.x_m, o.y_m])
+        polys.append(np.array([c + f + lft, c - f + lft, c - f - lft, c + f - lft]))
+    shp = [Polygon(p) for p in polys]
+    edges = [(i, j) for i in range(len(shp)) for j in range(i + 1, len(shp)) if shp[i].distance(shp[j]) <= tol_m]
+    return polys, edges
 
 
 def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
@@ -262,189 +521,410 @@ def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
 
     from .evaluate import pier_connectivity
 
+    piers = [o for o in scene.objects if o.category == "pier"]
+    if not piers:
+        return _note("No pier structures in this scene.")
     conn = pier_connectivity(scene)
-    if not conn["n_segments"]:
-        return "<p>No pier structures.</p>"
     grid = scene.grid
-    img = base.copy() if base is not None else colorize(scene.classes if scene.classes is not None
-                                                        else np.zeros(grid.shape, np.uint8))
-    s = img.shape[1] / grid.width_px
+    polys, edges = _pier_graph(piers)
+    # structures = connected components of the touch graph
+    comp = list(range(len(piers)))
+
+    def root(i):
+        while comp[i] != i:
+            comp[i] = comp[comp[i]]
+            i = comp[i]
+        return i
+
+    for i, j in edges:
+        comp[root(i)] = root(j)
+    roots = sorted({root(i) for i in range(len(piers))})
+    sid = {r: k for k, r in enumerate(roots)}
     bad = set(conn.get("disconnected_ids", []))
-    for o in scene.objects:
-        if o.category != "pier":
-            continue
-        r = np.deg2rad(o.yaw_deg)
-        u, n = np.array([np.cos(r), np.sin(r)]), np.array([-np.sin(r), np.cos(r)])
-        c = np.array([o.x_m, o.y_m])
-        pts = np.array([c + u * o.length_m / 2 + n * o.width_m / 2, c - u * o.length_m / 2 + n * o.width_m / 2,
-                        c - u * o.length_m / 2 - n * o.width_m / 2, c + u * o.length_m / 2 - n * o.width_m / 2])
-        col, row = grid.to_pixel(pts[:, 0], pts[:, 1])
-        poly = np.round(np.stack([col * s, row * s], 1)).astype(np.int32)
-        cv2.fillPoly(img, [poly], (255, 40, 40) if o.id in bad else (40, 220, 90))
-    text = (f"<p>{conn['n_segments']} segments in {conn['n_structures']} structures; segments connected: "
-            f"{_fmt(conn['segments_connected'])}; structures reaching land: {_fmt(conn['structures_on_land'])}; "
-            f"<b>all connected: {_fmt(conn['all_connected'])}</b> (green: connected, red: not).</p>")
-    return text + _img(_data_uri(_fit(img)), "Pier segments by connectivity")
+    # crop the picture to the piers (+ margin) so the segments are legible
+    allp = np.concatenate(polys)
+    x0, y0 = allp.min(0) - 12
+    x1, y1 = allp.max(0) + 12
+    img = base if base is not None else colorize(scene.classes if scene.classes is not None
+                                                 else np.zeros(grid.shape, np.uint8))
+    s = img.shape[1] / grid.width_px
+    c0, r0 = grid.to_pixel(x0, y1)
+    c1, r1 = grid.to_pixel(x1, y0)
+    c0, r0 = max(0, int(c0 * s)), max(0, int(r0 * s))
+    c1, r1 = min(img.shape[1], int(np.ceil(c1 * s))), min(img.shape[0], int(np.ceil(r1 * s)))
+    crop = img[r0:r1, c0:c1]
+    k = max(1.0, 1000 / max(crop.shape[:2]))
+    crop = cv2.resize(crop, (round(crop.shape[1] * k), round(crop.shape[0] * k)), interpolation=cv2.INTER_CUBIC)
+    canvas = (crop * 0.6 + 100).astype(np.uint8)  # faded so the overlay reads
+
+    def px(xy):
+        c, r = grid.to_pixel(xy[..., 0], xy[..., 1])
+        return np.stack([(c * s - c0) * k, (r * s - r0) * k], -1)
+
+    cmap = [(31, 119, 180), (44, 160, 44), (148, 103, 189), (23, 190, 207), (188, 189, 34), (140, 86, 75),
+            (227, 119, 194), (127, 127, 127), (255, 127, 14)]
+    fill = canvas.copy()
+    for i, (o, p) in enumerate(zip(piers, polys)):
+        pts = np.round(px(p)).astype(np.int32)
+        cv2.fillPoly(fill, [pts], cmap[sid[root(i)] % len(cmap)])
+    canvas = cv2.addWeighted(fill, 0.75, canvas, 0.25, 0)
+    for i, (o, p) in enumerate(zip(piers, polys)):
+        pts = np.round(px(p)).astype(np.int32)
+        cv2.polylines(canvas, [pts], True, (220, 30, 30) if o.id in bad else (20, 20, 20), 3 if o.id in bad else 1,
+                      cv2.LINE_AA)
+    centres = px(np.array([[o.x_m, o.y_m] for o in piers]))
+    for i, j in edges:
+        cv2.line(canvas, tuple(np.round(centres[i]).astype(int)), tuple(np.round(centres[j]).astype(int)),
+                 (255, 255, 255), 2, cv2.LINE_AA)
+    for c in centres:
+        cv2.circle(canvas, tuple(np.round(c).astype(int)), 4, (0, 0, 0), -1, cv2.LINE_AA)
+        cv2.circle(canvas, tuple(np.round(c).astype(int)), 3, (255, 255, 255), -1, cv2.LINE_AA)
+    rows = []
+    from .evaluate import _touches_land  # the same land test as the metric
+    from shapely.geometry import Polygon
+
+    for r in roots:
+        members = [i for i in range(len(piers)) if root(i) == r]
+        land = any(_touches_land(scene, Polygon(polys[i]).buffer(0.5)) for i in members)
+        kinds: dict[str, int] = {}
+        for i in members:
+            kinds[piers[i].asset_id] = kinds.get(piers[i].asset_id, 0) + 1
+        swatch = f'<i class="sw" style="background:{_rgb_css(cmap[sid[r] % len(cmap)])}"></i>'
+        rows.append([f"{swatch}{sid[r] + 1}", str(len(members)),
+                     f"{sum(piers[i].length_m * piers[i].width_m for i in members):.0f}",
+                     ", ".join(f"{html.escape(a)} × {n}" for a, n in kinds.items()),
+                     '<span class="ok">yes</span>' if land else '<span class="bad">no</span>',
+                     str(sum(1 for i in members if piers[i].id in bad))])
+    ok = conn.get("all_connected")
+    text = _note(f"{conn['n_segments']} segments in {conn['n_structures']} structures; segments connected "
+                 f"{100 * (conn['segments_connected'] or 0):.0f}%, structures reaching land "
+                 f"{100 * (conn['structures_on_land'] or 0):.0f}%: "
+                 + ('<b class="ok">all connected</b>' if ok else '<b class="bad">not all connected</b>')
+                 + ". Colours: one per structure; white lines join touching segments; red outlines: "
+                 "disconnected segments.")
+    return (text + '<div class="pair">' + _img(_data_uri(canvas), "Pier segments, structures and connections")
+            + "<div>" + _table(["structure", "segments", "deck area (m²)", "assets", "reaches land",
+                                "disconnected"], rows) + "</div></div>")
 
 
 def _vegetation_section(scene: Scene) -> str:
+    import cv2
+
     v = scene.vegetation
     if v is None or not len(v) or scene.classes is None:
-        return "<p>No vegetation instances.</p>"
+        return _note("No vegetation or rock instances in this scene.")
     grid = scene.grid
     col, row = grid.to_pixel(v.x_m, v.y_m)
-    cls = scene.classes[np.clip(row.astype(int), 0, grid.height_px - 1), np.clip(col.astype(int), 0, grid.width_px - 1)]
-    area = np.bincount(scene.classes.ravel(), minlength=8) * grid.gsd_m ** 2
-    cats = sorted(set(str(a) for a in v.asset_id))
+    ci = np.clip(np.asarray(col, float).astype(int), 0, grid.width_px - 1)
+    ri = np.clip(np.asarray(row, float).astype(int), 0, grid.height_px - 1)
+    cls = scene.classes[ri, ci]
+    area = np.bincount(scene.classes.ravel(), minlength=N_CLASSES) * grid.gsd_m ** 2
+    cats = sorted(set(str(a) for a in v.category))
+    dens = {}
     rows = []
-    for c in range(8):
+    for c in range(N_CLASSES):
         n = int(np.sum(cls == c))
-        if n == 0 and area[c] == 0:
+        if area[c] == 0 and n == 0:
             continue
-        per = ", ".join(f"{a}: {int(np.sum((cls == c) & (v.asset_id == a)))}" for a in cats
-                        if np.any((cls == c) & (v.asset_id == a)))
-        rows.append([CLASS_NAMES[c], f"{area[c]:.0f}", str(n), f"{(100 * n / area[c]) if area[c] else 0:.2f}",
-                     per or "—"])
-    return _table(["class", "area (m²)", "instances", "per 100 m²", "by asset"], rows)
+        d = 100 * n / area[c] if area[c] else 0.0
+        dens[c] = d
+        per = ", ".join(f"{html.escape(a)} {int(np.sum((cls == c) & (v.category == a)))}" for a in cats
+                        if np.any((cls == c) & (v.category == a)))
+        rows.append([f'<i class="sw" style="background:{_rgb_css(PALETTE[c])}"></i>{CLASS_NAMES[c]}',
+                     f"{area[c]:,.0f}", str(n), f"{d:.2f}", per or '<span class="muted">—</span>'])
+    top = max(dens.values()) or 1.0
+    bars = "".join(
+        f'<div class="bar"><span class="lab">{CLASS_NAMES[c]}</span><span class="b" style="width:{100 * d / top:.1f}%;'
+        f'background:{_rgb_css(PALETTE[c])}"></span><span class="val">{d:.2f}</span></div>'
+        for c, d in dens.items())
+    # instances over the (faded) class map, coloured by category
+    base = _upscale_small(_fit(colorize(scene.classes), 900))
+    s = base.shape[1] / grid.width_px
+    pic = (base * 0.55 + 115).astype(np.uint8)
+    ccols = [(0, 90, 0), (200, 30, 30), (120, 60, 200), (0, 0, 0), (230, 120, 0)]
+    for k, a in enumerate(cats):
+        sel = v.category == a
+        for x, y in zip(np.asarray(col, float)[sel] * s, np.asarray(row, float)[sel] * s):
+            cv2.circle(pic, (int(x), int(y)), 3, ccols[k % len(ccols)], -1, cv2.LINE_AA)
+    legend = '<div class="legend">' + "".join(
+        f'<span><i style="background:{_rgb_css(ccols[k % len(ccols)])}"></i>{html.escape(a)} '
+        f"<small>{int(np.sum(v.category == a))}</small></span>" for k, a in enumerate(cats)) + "</div>"
+    return ('<div class="pair"><div>' + _note(f"{len(v)} instances; density in instances per 100 m² of each class.")
+            + f'<div class="bars">{bars}</div>'
+            + _table(["class", "area (m²)", "instances", "per 100 m²", "by category"], rows) + "</div>"
+            + "<div>" + legend + _img(_data_uri(pic), "Vegetation and rock instances over the class map") + "</div></div>")
+
+
+METRIC_LABELS = {"n_truth": "truth objects", "n_pred": "predicted objects", "n_matched": "matched",
+                 "xy_rmse_m": "position RMSE (m)", "rotation_rmse_deg": "rotation RMSE (°, mod 180)",
+                 "orientation_rmse_deg": "orientation RMSE (°, full heading)", "recall": "recall",
+                 "match_precision": "asset match precision", "match_precision_category": "category precision",
+                 "detection_precision": "detection precision"}
 
 
 def _metrics_section(scene: Scene, truth_path: str | None) -> str:
     if not truth_path:
-        return "<p>No truth scene given (<code>coastforge report DIR --truth truth.json</code>).</p>"
+        return _note("No truth scene given: run <code>coastforge report DIR --truth truth.json</code> to compare.")
     from .evaluate import evaluate_scenes
 
     m = evaluate_scenes(load_scene(truth_path), scene)
-    keys = ["n_truth", "n_pred", "n_matched", "xy_rmse_m", "rotation_rmse_deg", "orientation_rmse_deg", "recall",
-            "match_precision", "match_precision_category", "detection_precision"]
-    cats = list(m["per_category"])
-    rows = [[k, _fmt(m[k])] + [_fmt(m["per_category"][c][k]) for c in cats] for k in keys]
-    t = m["terrain"]
-    extra = (f"<p>Terrain: mIoU {_fmt(t.get('miou'))}; height RMSE land {_fmt(t.get('height_rmse_land_m'))} m, "
-             f"water {_fmt(t.get('height_rmse_water_m'))} m. Piers all connected: "
-             f"{_fmt(m['piers'].get('all_connected'))}.</p>")
-    return _table(["metric", "all", *cats], rows) + extra
+    cats = list(m.get("per_category", {}))
+    rows = [[METRIC_LABELS.get(k, k), _fmt(m.get(k))] + [_fmt(m["per_category"][c].get(k)) for c in cats]
+            for k in METRIC_LABELS if k in m]
+    t = m.get("terrain") or {}
+    trows = [[html.escape(k), _fmt(v) if not isinstance(v, (dict, list)) else html.escape(json.dumps(v))]
+             for k, v in t.items()]
+    p = m.get("piers") or {}
+    prow = [[html.escape(k), _fmt(v) if not isinstance(v, list) else str(len(v))] for k, v in p.items()]
+    return (_note(f"Against <code>{html.escape(str(truth_path))}</code>.") + '<div class="pair">'
+            + "<div><h3>Objects</h3>" + _table(["metric", "all", *map(html.escape, cats)], rows) + "</div>"
+            + "<div><h3>Terrain</h3>" + _table(["metric", "value"], trows)
+            + "<h3>Piers</h3>" + _table(["metric", "value"], prow) + "</div></div>")
 
 
-def _provenance_section(scene: Scene) -> str:
+def _versions(scene: Scene) -> list[list[str]]:
+    import platform
+    import sys
+
+    from . import __version__
+
     p = scene.provenance
-    t = p.get("timings_s", {})
-    rows = [[html.escape(k), f"{v:.2f} s"] for k, v in t.items()]
-    info = [["command", f"<code>{html.escape(str(p.get('command', '')))}</code>"], ["seed", _fmt(scene.seed)],
-            ["coastforge", _fmt(p.get("version"))], ["python", _fmt(p.get("python"))],
-            ["platform", _fmt(p.get("platform"))], ["backends", html.escape(json.dumps(p.get("backends", {})))],
-            ["library", _fmt(p.get("library"))]]
-    return _table(["stage", "wall time"], rows, "timings") + _table(["", ""], info, "prov")
-
-
-def _glb_bytes(scene: Scene, scene_dir: Path) -> bytes | None:
-    for p in (scene_dir / "gltf" / "scene.glb", *sorted((scene_dir / "gltf").glob("*.glb"))
-              if (scene_dir / "gltf").is_dir() else ()):
-        if Path(p).is_file():
-            return Path(p).read_bytes()
+    three = ""
     try:
-        from .export import scene_glb_bytes
+        lic = resources.files("coastforge.report_assets").joinpath("THREE_LICENSE.txt").read_text(encoding="utf-8")
+        three = lic.split("—")[0].strip()
+    except (OSError, FileNotFoundError):
+        pass
+    return [["scene made by", _fmt(p.get("version") or p.get("tool"))], ["report made by", f"coastforge {__version__}"],
+            ["python (scene / report)", f"{_fmt(p.get('python'))} / {platform.python_version()}"],
+            ["numpy", np.__version__], ["3D viewer", html.escape(three or "three.js")],
+            ["platform", _fmt(p.get("platform") or sys.platform)]]
 
-        return scene_glb_bytes(scene, scene_dir)
+
+def _provenance_section(scene: Scene, report_s: float) -> str:
+    p = scene.provenance
+    t = {k: float(v) for k, v in (p.get("timings_s") or {}).items() if isinstance(v, (int, float))}
+    total = t.pop("total", None)
+    t["report"] = report_s
+    top = max(t.values()) if t else 1.0
+    bars = "".join(f'<div class="bar"><span class="lab">{html.escape(k)}</span><span class="b" style="width:'
+                   f'{100 * v / top if top else 0:.1f}%"></span><span class="val">{v:.2f} s</span></div>'
+                   for k, v in t.items())
+    total_s = f"{total:.2f} s" if total is not None else f"{sum(t.values()) - report_s:.2f} s"
+    info = [["command", f"<code>{html.escape(str(p.get('command') or '—'))}</code>"], ["seed", _fmt(scene.seed)],
+            ["input", _fmt((p.get("input") or {}).get("image"))], ["library", _fmt(p.get("library"))],
+            ["backends", html.escape(", ".join(f"{k}: {v}" for k, v in (p.get("backends") or {}).items()) or "—")],
+            *_versions(scene)]
+    cfg = p.get("config")
+    cfg_html = (f'<details><summary>configuration</summary><pre>{html.escape(json.dumps(cfg, indent=1))}</pre>'
+                "</details>") if cfg else ""
+    return ('<div class="pair"><div><h3>Stage timings</h3>'
+            + (f'<div class="bars timings">{bars}</div>' if bars else _note("No timings recorded."))
+            + _note(f"pipeline total {total_s} (report {report_s:.2f} s; wall clock on the machine that ran it)")
+            + "</div><div><h3>Run</h3>" + _table(["", ""], info, "prov") + cfg_html + "</div></div>")
+
+
+PREVIEW_MAX_BYTES = 6_000_000  # an exported GLB bigger than this is replaced by a lighter preview build
+PREVIEW_VERTICES = 60_000
+PREVIEW_TEXTURE_PX = 1024
+
+
+def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets) -> tuple[bytes | None, str]:
+    """The GLB shown in the 3D view: the exported one when small enough, else one built with a lighter
+    terrain (fewer vertices, smaller texture) so that the page stays light and loads fast."""
+    d = scene_dir / "gltf"
+    files = sorted(d.glob("*.glb")) if d.is_dir() else []
+    if files and files[0].stat().st_size <= PREVIEW_MAX_BYTES:
+        return files[0].read_bytes(), str(files[0].relative_to(scene_dir))
+    why = (f"a lighter preview of {files[0].relative_to(scene_dir)} ({files[0].stat().st_size / 1e6:.1f} MB)"
+           if files else "built for the report (no gltf export in the folder)")
+    try:
+        from .config import ExportConfig
+        from .export import DefaultResolver, run_exporter
+
+        cfg = ExportConfig(gltf_max_vertices=PREVIEW_VERTICES, texture_max_px=PREVIEW_TEXTURE_PX)
+        built = run_exporter("gltf", scene, DefaultResolver(library=assets.lib, scene_dir=scene_dir), cfg)
+        for name, data in built.items():
+            if name.endswith(".glb"):
+                return data, why
     except Exception:  # noqa: BLE001 - no 3D preview rather than no report
-        return None
+        pass
+    return None, ""
 
 
 CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;background:#f4f6f8;color:#1d2733}
-header{background:#0b3954;color:#fff;padding:14px 24px}header h1{margin:0;font-size:22px}
-header p{margin:4px 0 0;opacity:.85}nav{padding:6px 24px;background:#e3ecf2;font-size:14px}
-nav a{margin-right:14px;color:#0b3954}section{background:#fff;margin:16px 24px;padding:12px 18px;border-radius:8px;
-box-shadow:0 1px 3px rgba(0,0,0,.08)}h2{margin-top:4px;font-size:18px;color:#0b3954}
-.row{display:flex;flex-wrap:wrap;gap:12px}figure{margin:0;flex:1 1 420px;max-width:100%}
-figure img{width:100%;height:auto;border:1px solid #ccd;border-radius:4px}figcaption{font-size:13px;color:#556}
-table{border-collapse:collapse;font-size:13px;margin:6px 0}td,th{border:1px solid #dde;padding:3px 7px;
-text-align:left;vertical-align:middle}th{background:#eef3f7}img.thumb{width:72px;height:72px;border-radius:3px}
-.legend span{display:inline-block;margin:2px 10px 2px 0;font-size:13px}.legend i{display:inline-block;width:14px;
-height:14px;margin-right:4px;vertical-align:-2px;border:1px solid #888}#viewer{width:100%;min-height:520px}
-.objects-wrap{max-height:640px;overflow:auto}
+*{box-sizing:border-box}
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;background:#eef2f5;color:#1d2733;
+font-size:14px;line-height:1.4}
+header{background:linear-gradient(90deg,#0b3954,#087e8b);color:#fff;padding:16px 28px}
+header h1{margin:0;font-size:22px;font-weight:600}header p{margin:6px 0 0;opacity:.9}
+.chips span{display:inline-block;background:rgba(255,255,255,.16);border-radius:12px;padding:2px 10px;margin:6px 6px 0 0;
+font-size:13px}
+nav{position:sticky;top:0;z-index:5;padding:8px 28px;background:#dfe8ef;font-size:13px;border-bottom:1px solid #c9d6e0}
+nav a{margin-right:14px;color:#0b3954;text-decoration:none;white-space:nowrap}nav a:hover{text-decoration:underline}
+section{background:#fff;margin:16px 28px;padding:14px 20px 18px;border-radius:8px;box-shadow:0 1px 3px rgba(0,0,0,.1);
+scroll-margin-top:44px}
+h2{margin:2px 0 10px;font-size:18px;color:#0b3954}h3{font-size:15px;margin:6px 0;color:#234}
+.pair{display:grid;grid-template-columns:repeat(auto-fit,minmax(440px,1fr));gap:16px;align-items:start}
+figure{margin:0}figure img{width:100%;height:auto;border:1px solid #ccd5dd;border-radius:4px;cursor:zoom-in;
+display:block;background:#fff}figure.wide img{max-width:1100px}
+figcaption{font-size:13px;color:#4a5866;margin-top:4px}
+.stack{position:relative}.stack img.top{position:absolute;left:0;top:0;image-rendering:pixelated}
+.stack img:first-child{cursor:default}
+table{border-collapse:collapse;font-size:13px;margin:6px 0}td,th{border:1px solid #dbe2e8;padding:4px 8px;
+text-align:left;vertical-align:middle}th{background:#eef3f7;position:sticky;top:0;z-index:1}
+tbody tr:nth-child(even){background:#f8fafc}
+table.objects td{white-space:nowrap}
+.scroll{max-height:720px;overflow:auto;border:1px solid #e3e9ee;border-radius:4px}
+img.thumb,.av{width:96px;height:96px;border-radius:3px;display:inline-block;vertical-align:middle;
+background-size:cover;border:1px solid #ccd}
+.av.small{width:44px;height:44px}
+.cands{display:flex;gap:8px}.cand{display:flex;gap:4px;align-items:center;font-size:12px}
+.legend span{display:inline-block;margin:2px 14px 4px 0;font-size:13px}
+.legend i,.sw{display:inline-block;width:14px;height:14px;margin-right:5px;vertical-align:-2px;
+border:1px solid #777;border-radius:2px}
+small,.muted,.note{color:#5b6875}.note{margin:4px 0 10px}
+.ok{color:#1a7f37}.bad{color:#c62828}
+.bars{margin:6px 0 10px;max-width:620px}.bar{display:flex;align-items:center;gap:8px;margin:3px 0}
+.bar .lab{width:110px;font-size:13px;text-align:right}.bar .b{height:14px;background:#087e8b;border-radius:2px;
+min-width:2px}.bar .val{font-size:12px;color:#445;white-space:nowrap}
+.timings .b{background:#0b3954}
+code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px}code{background:#f1f4f7;padding:1px 4px;
+border-radius:3px;white-space:pre-wrap;word-break:break-all}
+pre{max-height:320px;overflow:auto;background:#f6f8fa;padding:8px;border-radius:4px}
+table.prov td:first-child{font-weight:600;white-space:nowrap}
+#viewer{width:100%;height:560px;position:relative;border:1px solid #ccd5dd;border-radius:4px;overflow:hidden;
+background:#dde6ee}
+#viewer canvas{display:block}
+.vbar{margin:8px 0 0;display:flex;gap:8px;align-items:center}
+.vbar button{border:1px solid #9ab;background:#f4f8fb;border-radius:4px;padding:3px 10px;cursor:pointer}
+#lightbox{position:fixed;inset:0;background:rgba(10,20,30,.88);display:none;align-items:center;justify-content:center;
+z-index:20;cursor:zoom-out}#lightbox img{max-width:96vw;max-height:94vh;background:#fff}
+footer{margin:10px 28px 24px;color:#667;font-size:12px}
+"""
+
+JS = """
+(function () {
+  var lb = document.getElementById('lightbox'), lbi = lb.querySelector('img');
+  document.querySelectorAll('figure img').forEach(function (im) {
+    if (im.closest('.stack') && !im.classList.contains('top')) return;
+    im.addEventListener('click', function () { lbi.src = im.src; lb.style.display = 'flex'; });
+  });
+  lb.addEventListener('click', function () { lb.style.display = 'none'; lbi.removeAttribute('src'); });
+  var op = document.getElementById('classmap-opacity'), cm = document.getElementById('classmap-img');
+  if (op && cm) op.addEventListener('input', function () { cm.style.opacity = op.value / 100; });
+  var data = document.getElementById('glb-data'), el = document.getElementById('viewer');
+  if (!data || !el) return;
+  if (!window.CoastforgeViewer) { el.textContent = 'The 3D viewer script did not load.'; return; }
+  var v;
+  try {
+    v = window.CoastforgeViewer.show(el, data.textContent.trim(), {height: el.clientHeight || 560});
+  } catch (e) {
+    el.dataset.error = String(e);
+    el.textContent = 'This browser cannot show the 3D preview (WebGL unavailable): ' + e;
+    console.warn(e);
+    return;
+  }
+  v.then(function (r) {
+    el.dataset.drawnMs = String(Math.round(performance.now()));
+    document.querySelectorAll('.vbar button').forEach(function (b) {
+      b.addEventListener('click', function () { r.view && r.view(b.dataset.view); });
+    });
+  }).catch(function (e) { el.dataset.error = String(e); console.error('3D preview: ' + e); });
+})();
 """
 
 
-def build_report(scene_dir: str | Path, truth: str | None = None, out: str | Path | None = None) -> Path:
-    """Write ``report.html`` for the scene in ``scene_dir`` and return its path."""
+def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: str | Path | None = None,
+                 overwrite: bool = False, progress: Callable[[str], None] | None = None) -> Path:
+    """Write the offline ``report.html`` of the scene in ``scene_dir`` and return its path.
+
+    ``out`` defaults to ``scene_dir/report.html``, which is always rebuilt (it is a view of the scene);
+    another existing ``out`` is replaced only with ``overwrite``. ``truth`` (a truth scene) adds the
+    metrics. ``progress(step)`` is told which part is being built."""
+    t_start = time.perf_counter()
+    say = progress or (lambda _msg: None)
     scene_dir = Path(scene_dir)
+    if scene_dir.is_file():
+        scene_dir = scene_dir.parent
+    if not (scene_dir / "scene.json").is_file():
+        raise InputError(f"{scene_dir} holds no scene.json; give the --out folder of `coastforge generate`")
+    if truth is not None and not Path(truth).exists():
+        raise InputError(f"truth scene {truth} does not exist; give a truth.json written by `coastforge synth` "
+                         "or a scene.json")
+    out_path = Path(out) if out else scene_dir / "report.html"
+    if out and out_path.exists() and not overwrite and out_path.resolve() != (scene_dir / "report.html").resolve():
+        raise OutputExistsError(f"{out_path} exists; pass --overwrite to replace it, or choose another --out")
+    say("loading the scene")
     scene = load_scene(scene_dir)
     grid = scene.grid
     assets = _Assets(scene)
-    image = _input_image(scene, scene_dir)
+    image, image_src = _input_image(scene, scene_dir)
+    dets = _detections(scene_dir)
+    objs = [o for o in scene.objects if o.category in EVALUATED_CATEGORIES]
+    matches = [m for m in scene.provenance.get("matches", []) if isinstance(m, dict)]
+    links = match_objects_to_decisions(objs, matches)
+    row_of_det = {}
+    for k, o in enumerate(objs):
+        m = links.get(o.id)
+        if m is not None and isinstance(m.get("index"), int):
+            row_of_det[m["index"]] = str(k + 1)
     parts: dict[str, str] = {}
+    say("rendering the scene from above")
     top = _render_top(scene, assets)
-    row = []
-    if image is not None:
-        row.append(_img(_data_uri(_fit(image)), "Input image"))
-    if top is not None:
-        row.append(_img(_data_uri(_fit(top)), "Generated scene rendered from above"))
-    parts["overview"] = '<div class="row">' + "".join(row) + "</div>"
+    parts["overview"] = _overview(image, top)
     base = _fit(image) if image is not None else None
-    if scene.classes is not None:
-        cm = colorize(scene.classes)
-        if base is not None:
-            cm_small = _resize_to(cm, base.shape[:2], nearest=True)
-            overlay = (0.55 * base + 0.45 * cm_small).astype(np.uint8)
-        else:
-            overlay = _fit(cm)
-        legend = '<div class="legend">' + "".join(
-            f'<span><i style="background:rgb{tuple(int(v) for v in PALETTE[c])}"></i>{n}</span>'
-            for c, n in enumerate(CLASS_NAMES)) + "</div>"
-        cleaned = scene_dir / "cleaned.png"
-        imgs = [_img(_data_uri(overlay), "Terrain classes over the image")]
-        if cleaned.is_file():
-            from .fsio import read_png
-
-            imgs.append(_img(_data_uri(_fit(read_png(cleaned))), "Cleaned image (boats and vehicles removed)"))
-        parts["classes"] = legend + '<div class="row">' + "".join(imgs) + "</div>"
-    else:
-        parts["classes"] = "<p>No class map.</p>"
-    if base is not None:
-        s = base.shape[1] / grid.width_px
-        parts["detections"] = _img(_data_uri(_draw_detections(base, scene_dir, s)),
-                                   "Detections (arrows: heading; grey arrows: heading not known)")
-    else:
-        parts["detections"] = "<p>The input image is not available.</p>"
-    parts["objects"] = '<div class="objects-wrap">' + _objects_table(scene, image, assets) + "</div>"
-    parts["terrain"] = _terrain_plots(scene)
+    say("class map and detections")
+    parts["classes"] = _classes_section(scene, base, scene_dir)
+    det_base = _upscale_small(base) if base is not None else None
+    img_w = image.shape[1] if image is not None else grid.width_px
+    parts["detections"] = _detections_section(det_base, dets, (det_base.shape[1] / img_w) if det_base is not None
+                                              else 1.0, row_of_det)
+    say("objects and asset views")
+    parts["objects"], asset_css = _objects_section(scene, image, assets, links, dets)
+    say("terrain plots")
+    parts["terrain"] = _terrain_section(scene, scene_dir)
+    say("piers and vegetation")
     parts["piers"] = _piers_section(scene, base)
     parts["vegetation"] = _vegetation_section(scene)
-    parts["metrics"] = _metrics_section(scene, truth)
-    parts["provenance"] = _provenance_section(scene)
-    glb = _glb_bytes(scene, scene_dir)
+    if truth is not None:
+        say("metrics against the truth")
+    parts["metrics"] = _metrics_section(scene, str(truth) if truth is not None else None)
+    say("3D preview")
+    glb, glb_src = _glb_bytes(scene, scene_dir, assets)
     bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js").read_text(encoding="utf-8")
     if glb is not None:
-        glb_b64 = base64.b64encode(glb).decode("ascii")
-        parts["preview3d"] = ('<div id="viewer"></div><p>Drag to orbit, scroll to zoom.</p>'
-                              f'<script id="glb-data" type="application/octet-stream">{glb_b64}</script>')
+        parts["preview3d"] = (
+            '<div id="viewer"></div><div class="vbar"><button data-view="top">top view</button>'
+            '<button data-view="oblique">oblique</button><button data-view="low">low, from the water</button>'
+            f'<span class="muted">Drag to orbit, right-drag to pan, scroll to zoom. GLB: {html.escape(glb_src)}, '
+            f"{len(glb) / 1e6:.1f} MB.</span></div>"
+            f'<script id="glb-data" type="application/octet-stream">{base64.b64encode(glb).decode("ascii")}</script>')
     else:
-        parts["preview3d"] = "<p>No GLB could be built for the 3D preview.</p>"
-    titles = {"overview": "Input and generated scene", "classes": "Terrain classes", "detections": "Detections",
-              "objects": "Objects and their assets", "terrain": "Height map and shore profile",
-              "piers": "Pier structures", "vegetation": "Vegetation density per class",
-              "metrics": "Metrics against the truth", "provenance": "Timings, command and versions",
-              "preview3d": "3D preview"}
-    nav = "".join(f'<a href="#sec-{k}">{titles[k]}</a>' for k in SECTIONS)
-    body = "".join(f'<section id="sec-{k}"><h2>{titles[k]}</h2>{parts[k]}</section>' for k in SECTIONS)
+        parts["preview3d"] = _note("No GLB could be built for the 3D preview (run <code>coastforge export DIR "
+                                   "--format gltf</code>).")
+    parts["provenance"] = _provenance_section(scene, time.perf_counter() - t_start)
+    nav = "".join(f'<a href="#sec-{k}">{TITLES[k]}</a>' for k in SECTIONS)
+    body = "".join(f'<section id="sec-{k}" data-section="{k}"><h2>{TITLES[k]}</h2>{parts[k]}</section>'
+                   for k in SECTIONS)
     counts: dict[str, int] = {}
     for o in scene.objects:
         counts[o.category] = counts.get(o.category, 0) + 1
-    summary = ", ".join(f"{v} {k}" for k, v in counts.items()) or "no objects"
+    chips = [f"{scene.extent_m[0]:.0f} × {scene.extent_m[1]:.0f} m", f"{grid.gsd_m:.3f} m/px",
+             *(f"{v} {k}{'s' if v != 1 else ''}" for k, v in counts.items()),
+             f"{len(scene.vegetation) if scene.vegetation is not None else 0} plants/rocks", f"seed {scene.seed}"]
+    src = f" · input: {html.escape(image_src)}" if image_src else ""
     page = f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"/>
-<title>coastforge report: {html.escape(scene.name)}</title><style>{CSS}</style></head><body>
-<header><h1>coastforge — {html.escape(scene.name)}</h1><p>{scene.extent_m[0]:.0f} × {scene.extent_m[1]:.0f} m at
-{scene.gsd_m:.3f} m/px · {summary} · {len(scene.vegetation) if scene.vegetation is not None else 0} vegetation
-instances</p></header><nav>{nav}</nav>{body}
+<meta name="viewport" content="width=device-width, initial-scale=1"/>
+<title>coastforge report: {html.escape(scene.name)}</title><style>{CSS}{asset_css}</style></head><body>
+<header><h1>coastforge — {html.escape(scene.name)}</h1><div class="chips">{"".join(f"<span>{c}</span>" for c in chips)}</div>
+<p>Generated environment report{src}</p></header><nav>{nav}</nav>{body}
+<footer>Self-contained page: works offline; the 3D view uses three.js (MIT licence), bundled.</footer>
+<div id="lightbox"><img alt="enlarged picture"/></div>
 <script>{bundle}</script>
-<script>
-(function () {{
-  var data = document.getElementById('glb-data');
-  var el = document.getElementById('viewer');
-  if (!data || !el || !window.CoastforgeViewer) return;
-  window.CoastforgeViewer.show(el, data.textContent.trim()).catch(function (e) {{ console.error(e); }});
-}})();
-</script></body></html>"""
-    out_path = Path(out) if out else scene_dir / "report.html"
+<script>{JS}</script></body></html>"""
+    say("writing")
+    if out and out_path.parent and not out_path.parent.exists():
+        raise InputError(f"folder {out_path.parent} does not exist; create it or choose another --out")
     atomic_write_text(out_path, page)
     return out_path
