@@ -1,0 +1,464 @@
+"""Embedders: an image crop of one object (+ its metres per pixel) → an L2-normalised vector.
+
+Protocol (every embedder): ``name``, ``settings`` (a JSON-able dict recorded in library.json),
+``dim`` and ``embed(images, gsd_m) -> (n, dim) float32`` with unit rows.
+
+``DefaultEmbedder`` needs no weights. Queries come at any yaw on water or ground, so it
+
+1. segments the object from its background with a border colour model (the crop's outer ring is
+   background; minority colours on the ring are parts of the object or of neighbours and are dropped),
+   drops cast shadows (darker, bluer copies of the background), grows faint parts by hysteresis and
+   cuts neighbours joined by narrow bridges (cars parked side by side);
+2. normalises rotation: the mask's principal axis becomes horizontal, the third moment picks which
+   end points right (so both a library view and a query land in the same pose);
+3. describes the object by blocks, each a unit vector times a weight, so the inner product of two
+   embeddings is a weighted sum of per-block similarities:
+   metric footprint (length, width, area in metres, as Gaussian soft-bins over log size),
+   Lab colour (ab histogram, L histogram, a coarse colour layout along the body),
+   silhouette (aspect, solidity, width profile along the length, rotation-invariant radial spectrum,
+   Hu moments), gradients (HOG on the pose-normalised crop, rotation-invariant LBP histogram).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import InputError
+
+_VERSION = 2
+SIZE_BINS = (96, 80, 80)  # Gaussian soft-bins over log length / width / area (sigma ~ 9 %, 9 %, 19 %)
+# segmentation (tuned on the retrieval benchmark; recorded in the embedder settings)
+THR_K = 7.0  # foreground = farther from every ring colour than median + THR_K robust sigmas
+HYST = 0.7  # fainter pixels (x threshold) join when they touch clear foreground
+MIN_SUPPORT = 0.2  # ring colours covering less of the ring are parts of the object or its neighbours
+SEPARATE = True  # cut neighbours joined by narrow bridges (parked cars, adjacent berths)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    v = np.asarray(v, np.float32).ravel()
+    n = float(np.linalg.norm(v))
+    return v / n if n > 1e-12 else v
+
+
+@functools.lru_cache(maxsize=64)
+def _centres(lo: float, hi: float, n: int) -> np.ndarray:
+    return np.linspace(lo, hi, n)
+
+
+def _rbf(value: float, lo: float, hi: float, n: int) -> np.ndarray:
+    """Gaussian soft-binning of a scalar: the inner product of two codes falls smoothly with distance."""
+    centres = _centres(lo, hi, n)
+    sigma = (hi - lo) / (n - 1)
+    v = float(np.clip(value, lo - sigma, hi + sigma))
+    return np.exp(-0.5 * ((centres - v) / sigma) ** 2).astype(np.float32)
+
+
+def rgb_to_lab(rgb: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2Lab)
+
+
+def _as_rgb(image: np.ndarray, i: int) -> np.ndarray:
+    a = np.asarray(image)
+    if a.ndim == 2:
+        a = np.repeat(a[:, :, None], 3, axis=2)
+    if a.ndim != 3 or a.shape[2] not in (3, 4):
+        raise InputError(f"image {i} has shape {a.shape}; embedders need an RGB (H, W, 3) array")
+    a = a[:, :, :3]
+    if a.dtype != np.uint8:
+        if np.issubdtype(a.dtype, np.floating) and a.size and float(np.nanmax(a)) <= 1.0:
+            a = a * 255.0
+        a = np.clip(np.nan_to_num(a), 0, 255).astype(np.uint8)
+    if min(a.shape[:2]) < 4:
+        raise InputError(f"image {i} is {a.shape[1]}x{a.shape[0]} px; crops must be at least 4x4 px")
+    return np.ascontiguousarray(a)
+
+
+def _background_centres(border: np.ndarray, radius: float = 10.0) -> np.ndarray:
+    """A few colour centres for the crop's ring (leader clustering + one k-means step), minorities dropped.
+
+    Minority ring colours are object parts touching the crop edge, not background.
+    """
+    step = max(1, len(border) // 400)
+    pts = border[::step]
+    centres = [pts[0]]
+    dmin = ((pts - pts[0]) ** 2).sum(1)
+    while len(centres) < 8:
+        far = np.nonzero(dmin > radius * radius)[0]
+        if not len(far):
+            break
+        centres.append(pts[far[0]])
+        dmin = np.minimum(dmin, ((pts - pts[far[0]]) ** 2).sum(1))
+    c = np.asarray(centres, np.float32)
+    lab_d = ((pts[:, None, :] - c[None]) ** 2).sum(-1)
+    near = lab_d.argmin(1)
+    support = np.bincount(near, minlength=len(c)) / len(pts)
+    c = np.asarray([pts[near == k].mean(0) if (near == k).any() else c[k] for k in range(len(c))], np.float32)
+    keep = support >= MIN_SUPPORT
+    return c[keep] if keep.any() else c[[int(support.argmax())]]
+
+
+def object_mask(rgb: np.ndarray, work_px: int = 72) -> np.ndarray:
+    """Foreground mask (bool, H x W); large crops are segmented at ``work_px`` and the mask upsampled."""
+    import cv2
+
+    h, w = rgb.shape[:2]
+    f = work_px / max(h, w)
+    if f >= 1.0:
+        return _object_mask(rgb)
+    small = cv2.resize(rgb, (max(4, round(w * f)), max(4, round(h * f))), interpolation=cv2.INTER_AREA)
+    m = _object_mask(small).astype(np.float32)
+    return cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR) >= 0.5
+
+
+def _object_mask(rgb: np.ndarray) -> np.ndarray:
+    """Foreground mask (bool, H x W) of the object in a crop whose border shows its background.
+
+    Background = colours near the ring's colour centres, or darker copies of them (cast shadows,
+    which are lit only by the bluish sky). The components kept are the central and the large ones.
+    """
+    import cv2
+
+    lab = rgb_to_lab(rgb)
+    h, w = lab.shape[:2]
+    ring = max(1, min(h, w) // 20)
+    edge = np.zeros((h, w), bool)
+    edge[:ring], edge[-ring:], edge[:, :ring], edge[:, -ring:] = True, True, True, True
+    border = lab[edge]
+    centres = _background_centres(border)
+    flat = lab.reshape(-1, 3)
+    d2 = (flat ** 2).sum(1)[:, None] - 2.0 * flat @ centres.T + (centres ** 2).sum(1)[None, :]
+    d = np.sqrt(np.maximum(d2, 0.0))
+    nearest = d.argmin(1)
+    dmin = d[np.arange(len(d)), nearest]
+    bd = dmin.reshape(h, w)[edge]
+    # robust spread of the ring's colours: glints and object pixels on the ring must not inflate it
+    med = float(np.median(bd))
+    thr = max(6.0, med + THR_K * 1.4826 * float(np.median(np.abs(bd - med))))
+    fg = dmin > thr
+    # cast shadows: a darker, slightly bluer copy of the background
+    rgbf = rgb.reshape(-1, 3).astype(np.float32) + 2.0
+    e_rgb, e_near = rgbf[edge.ravel()], nearest[edge.ravel()]
+    cnt = np.bincount(e_near, minlength=len(centres)).astype(np.float32)
+    bg_rgb = np.stack([np.bincount(e_near, weights=e_rgb[:, c], minlength=len(centres)) for c in range(3)], 1)
+    bg_rgb = np.where(cnt[:, None] > 0, bg_rgb / np.maximum(cnt[:, None], 1), rgbf.mean(0)).astype(np.float32)
+    ratio = rgbf / bg_rgb[nearest]
+    k = ratio[:, :2].mean(1)
+    slack = 6.0 / np.minimum(bg_rgb[nearest][:, 0], bg_rgb[nearest][:, 1])  # dark channels are noisy
+    shadow = (k > 0.4) & (k < 0.97) & (np.abs(ratio[:, 0] - ratio[:, 1]) < 0.2 * k + slack) \
+        & (ratio[:, 2] > 0.8 * k) & (ratio[:, 2] < 1.6 * k + 0.05)
+    fg = (fg & ~shadow).reshape(h, w)
+    fg8 = fg.astype(np.uint8)
+    if min(h, w) >= 40:  # drop speckle (glints, noise); a centred 3x3 kernel does not shift the mask
+        fg8 = cv2.morphologyEx(fg8, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)))
+    # hysteresis: faint parts (a white hull on light ground) join when they touch clearly different ones
+    weak = ((dmin > HYST * thr) & ~shadow & ~edge.ravel()).reshape(h, w).astype(np.uint8) | fg8
+    nw, wl = cv2.connectedComponents(weak, connectivity=8)
+    if nw > 1 and fg8.any():
+        grow = np.zeros(nw, bool)
+        grow[np.unique(wl[fg8 > 0])] = True
+        grow[0] = False
+        fg8 = grow[wl].astype(np.uint8)
+    n, lbl, stats, cents = cv2.connectedComponentsWithStats(fg8, connectivity=8)
+    if n <= 1:
+        weak = _weak_mask(dmin.reshape(h, w), thr)
+        return weak if weak is not None else _fallback_mask(h, w)
+    sizes = stats[1:, cv2.CC_STAT_AREA]
+    cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
+    big = sizes.max()
+    keep = np.zeros(n, bool)
+    for k in range(1, n):
+        sz = sizes[k - 1]
+        xx, yy = cents[k]
+        keep[k] = sz >= 0.05 * big and ((abs(yy - cy) < 0.4 * h and abs(xx - cx) < 0.4 * w) or sz == big)
+    mask = _fill_holes(keep[lbl])
+    if SEPARATE:
+        mask = _separate_neighbours(mask)
+    if mask.sum() < 3:
+        return _fallback_mask(h, w)
+    return mask
+
+
+
+
+def _separate_neighbours(mask: np.ndarray) -> np.ndarray:
+    """Cut off neighbours (cars parked side by side, boats in adjacent berths) joined to the object by
+    narrow bridges: open with a disk a third of the blob's half-thickness, keep the parts centred in the
+    crop (a tree's separate canopies stay), and grow them back inside the original mask."""
+    import cv2
+
+    h, w = mask.shape
+    m8 = mask.astype(np.uint8)
+    dt = cv2.distanceTransform(m8, cv2.DIST_L2, 3)
+    r = int(round(0.35 * float(dt.max())))
+    if r < 2:
+        return mask
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    opened = cv2.morphologyEx(m8, cv2.MORPH_OPEN, disk)
+    n, lbl, stats, cents = cv2.connectedComponentsWithStats(opened, connectivity=8)
+    if n <= 2:
+        return mask
+    cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
+    sizes = stats[1:, cv2.CC_STAT_AREA]
+    d = np.hypot((cents[1:, 0] - cx) / w, (cents[1:, 1] - cy) / h)
+    central = d < 0.22
+    if not central.any():
+        central = d == d.min()
+    big = sizes[central].max()
+    keep = np.zeros(n, bool)
+    keep[1:] = central & (sizes >= 0.25 * big)
+    grown = cv2.dilate(keep[lbl].astype(np.uint8), disk)
+    return mask & (grown > 0)
+
+
+
+
+def _fill_holes(mask: np.ndarray) -> np.ndarray:
+    """Fill enclosed background (cv2 flood fill from a padded border: much faster than scipy here)."""
+    import cv2
+
+    h, w = mask.shape
+    pad = np.zeros((h + 2, w + 2), np.uint8)
+    pad[1:-1, 1:-1] = mask
+    ff = pad.copy()
+    cv2.floodFill(ff, np.zeros((h + 4, w + 4), np.uint8), (0, 0), 1)
+    return (pad.astype(bool) | (ff == 0))[1:-1, 1:-1]
+
+
+def _weak_mask(dmin: np.ndarray, thr: float) -> np.ndarray | None:
+    """Tiny or faint objects: the most background-unlike pixels of the crop's centre."""
+    h, w = dmin.shape
+    centre = np.zeros((h, w), bool)
+    centre[h // 4: h - h // 4 or h, w // 4: w - w // 4 or w] = True
+    vals = np.where(centre, dmin, 0.0)
+    if vals.max() <= 0.4 * thr:
+        return None
+    return vals > max(0.4 * thr, 0.5 * float(vals.max()))
+
+
+def _fallback_mask(h: int, w: int) -> np.ndarray:
+    """No contrast with the background: assume the object fills the central half of the crop."""
+    yy, xx = np.mgrid[0:h, 0:w]
+    return ((yy - (h - 1) / 2) / (h / 4)) ** 2 + ((xx - (w - 1) / 2) / (w / 4)) ** 2 <= 1.0
+
+
+def normalise_pose(rgb: np.ndarray, mask: np.ndarray):
+    """Rotate so the mask's major axis is horizontal (heavier end right); crop to the object.
+
+    Returns ``(crop_rgb, crop_mask, angle_deg, elongation)`` with elongation = minor/major axis ratio.
+    """
+    import cv2
+
+    m8 = mask.astype(np.uint8)
+    mo = cv2.moments(m8, binaryImage=True)
+    if mo["m00"] <= 0:
+        return rgb, mask, 0.0, 1.0
+    cx, cy = mo["m10"] / mo["m00"], mo["m01"] / mo["m00"]
+    mu20, mu02, mu11 = mo["mu20"] / mo["m00"], mo["mu02"] / mo["m00"], mo["mu11"] / mo["m00"]
+    theta = 0.5 * math.degrees(math.atan2(2 * mu11, mu20 - mu02))
+    common = math.sqrt(max(0.0, ((mu20 - mu02) / 2) ** 2 + mu11 ** 2))
+    l1, l2 = (mu20 + mu02) / 2 + common, (mu20 + mu02) / 2 - common
+    elong = math.sqrt(max(l2, 0.0) / l1) if l1 > 0 else 1.0
+    h, w = mask.shape
+    side = int(math.ceil(math.hypot(h, w))) + 2
+    # image angle is clockwise-positive for cv2 (row axis points down)
+    rot = cv2.getRotationMatrix2D((cx, cy), theta, 1.0)
+    rot[0, 2] += side / 2 - cx
+    rot[1, 2] += side / 2 - cy
+    mr = cv2.warpAffine(m8 * 255, rot, (side, side), flags=cv2.INTER_LINEAR) > 127
+    ys, xs = np.nonzero(mr)
+    if len(xs) == 0:
+        return rgb, mask, 0.0, elong
+    u = xs - xs.mean()
+    skew = float((u ** 3).mean())
+    if skew < 0:  # consistent end: heavier tail to the right
+        theta += 180.0
+        rot = cv2.getRotationMatrix2D((cx, cy), theta, 1.0)
+        rot[0, 2] += side / 2 - cx
+        rot[1, 2] += side / 2 - cy
+        mr = cv2.warpAffine(m8 * 255, rot, (side, side), flags=cv2.INTER_LINEAR) > 127
+        ys, xs = np.nonzero(mr)
+    img_r = cv2.warpAffine(rgb, rot, (side, side), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    return img_r[y0:y1, x0:x1], mr[y0:y1, x0:x1], theta, elong
+
+
+class DefaultEmbedder:
+    """Hand-made, weight-free, rotation-invariant embedding (see the module docstring)."""
+
+    name = "default"
+
+    # Block weights (relative importance in the inner product); tuned on the retrieval benchmark.
+    WEIGHTS = {
+        "size": 1.0, "colour_ab": 1.5, "colour_l": 0.5, "layout": 1.2,
+        "shape": 0.6, "profile": 0.6, "radial": 0.6, "hog": 0.9, "lbp": 0.4,
+    }
+    CANON = (32, 64)  # pose-normalised crop (rows across the width, columns along the length)
+    MAX_WORK_PX = 128  # larger crops are downsampled first: finer detail does not change the blocks
+
+    def __init__(self, weights: str | None = None, **overrides):
+        if weights is not None:
+            raise InputError(
+                f"the default embedder uses no weights, but --weights {weights} was given; "
+                "drop --weights or choose --embedder dinov3"
+            )
+        unknown = set(overrides) - set(self.WEIGHTS)
+        if unknown:
+            raise InputError(f"unknown default-embedder settings {sorted(unknown)}; valid: {sorted(self.WEIGHTS)}")
+        self.weights = {**self.WEIGHTS, **{k: float(v) for k, v in overrides.items()}}
+        self.dim = len(self._blocks(np.full((16, 16, 3), 128, np.uint8), 0.1))
+
+    @property
+    def settings(self) -> dict:
+        return {"version": _VERSION, "canon": list(self.CANON), "max_work_px": self.MAX_WORK_PX,
+                "size_bins": list(SIZE_BINS), "weights": dict(self.weights),
+                "segmentation": {"thr_k": THR_K, "hyst": HYST, "min_support": MIN_SUPPORT, "separate": SEPARATE}}
+
+    def embed(self, images: Sequence[np.ndarray], gsd_m: Sequence[float]) -> np.ndarray:
+        images = list(images)
+        gsds = [float(g) for g in gsd_m]
+        if len(gsds) != len(images):
+            raise InputError(f"embed got {len(images)} images but {len(gsds)} gsd values; give one gsd per image")
+        out = np.zeros((len(images), self.dim), np.float32)
+        for i, (img, g) in enumerate(zip(images, gsds)):
+            if not (g > 0 and math.isfinite(g)):
+                raise InputError(f"gsd {g!r} of image {i} must be a positive number of metres per pixel")
+            out[i] = _unit(self._blocks(_as_rgb(img, i), g))
+        return out
+
+    # -- blocks ---------------------------------------------------------------------------------------
+    def _blocks(self, rgb: np.ndarray, gsd: float) -> np.ndarray:
+        import cv2
+
+        h, w = rgb.shape[:2]
+        f = self.MAX_WORK_PX / max(h, w)
+        if f < 1.0:
+            rgb = cv2.resize(rgb, (max(4, round(w * f)), max(4, round(h * f))), interpolation=cv2.INTER_AREA)
+            gsd = gsd * (w / rgb.shape[1])
+        mask = object_mask(rgb)
+        crop, cmask, _theta, elong = normalise_pose(rgb, mask)
+        if cmask.sum() == 0:
+            crop, cmask = rgb, np.ones(rgb.shape[:2], bool)
+        length_px, width_px = cmask.shape[1], cmask.shape[0]
+        area_px = float(cmask.sum())
+        lab = rgb_to_lab(crop)
+        fg = lab[cmask]
+        wt = self.weights
+        blocks = []
+        # metric footprint
+        size = np.concatenate([
+            _rbf(math.log(max(length_px * gsd, 1e-3)), math.log(0.1), math.log(400.0), SIZE_BINS[0]),
+            _rbf(math.log(max(width_px * gsd, 1e-3)), math.log(0.05), math.log(80.0), SIZE_BINS[1]),
+            _rbf(math.log(max(area_px * gsd * gsd, 1e-4)), math.log(0.005), math.log(2e4), SIZE_BINS[2]),
+        ])
+        blocks.append(wt["size"] * _unit(size))
+        # colour: ab histogram (soft), L histogram
+        ab, _, _ = np.histogram2d(np.clip(fg[:, 1], -47.9, 47.9), np.clip(fg[:, 2], -47.9, 47.9),
+                                  bins=8, range=[[-48, 48], [-48, 48]])
+        ab = cv2.GaussianBlur(ab.astype(np.float32), (3, 3), 0.7)
+        blocks.append(wt["colour_ab"] * _unit(np.sqrt(ab)))
+        lh = np.histogram(fg[:, 0], bins=10, range=(0, 100))[0].astype(np.float32)
+        lh = np.convolve(lh, [0.25, 0.5, 0.25], mode="same")
+        blocks.append(wt["colour_l"] * _unit(np.sqrt(lh)))
+        # colour layout along the body: 6 x 3 cells of mean Lab relative to the object's mean
+        blocks.append(wt["layout"] * _unit(self._layout(lab, cmask)))
+        # silhouette scalars
+        cnts, _ = cv2.findContours(cmask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        hull_area = sum(cv2.contourArea(cv2.convexHull(c)) for c in cnts) if cnts else area_px
+        solidity = area_px / max(hull_area, 1.0)
+        extent = area_px / max(length_px * width_px, 1)
+        hu = cv2.HuMoments(cv2.moments(cmask.astype(np.uint8), binaryImage=True)).ravel()
+        hu_l = [-math.copysign(1.0, v) * math.log10(abs(v)) if abs(v) > 1e-30 else 30.0 for v in hu[:3]]
+        shape = np.concatenate([
+            _rbf(elong, 0.0, 1.0, 16), _rbf(solidity, 0.3, 1.0, 12), _rbf(extent, 0.3, 1.0, 12),
+            _rbf(hu_l[0], 0.6, 1.4, 10), _rbf(hu_l[1], 1.0, 6.0, 10),
+        ])
+        blocks.append(wt["shape"] * _unit(shape))
+        # width profile along the length (bow/stern shape)
+        cols = cmask.sum(axis=0).astype(np.float32)
+        prof = cv2.resize(cols[None, :], (16, 1), interpolation=cv2.INTER_AREA).ravel() / max(width_px, 1)
+        blocks.append(wt["profile"] * _unit(np.concatenate([prof, [1.0]])))
+        # rotation-invariant radial spectrum (round objects: trees, buoys, rocks)
+        blocks.append(wt["radial"] * _unit(self._radial(mask)))
+        # gradients on the pose-normalised grey crop
+        grey = lab[:, :, 0] * cmask + float(fg[:, 0].mean()) * (~cmask)
+        canon = cv2.resize(grey.astype(np.float32), (self.CANON[1], self.CANON[0]), interpolation=cv2.INTER_AREA
+                           if grey.shape[1] > self.CANON[1] else cv2.INTER_LINEAR)
+        blocks.append(wt["hog"] * _unit(np.sqrt(self._hog(canon))))
+        blocks.append(wt["lbp"] * _unit(np.sqrt(self._lbp(lab[:, :, 0], cmask))))
+        return np.concatenate(blocks)
+
+    @staticmethod
+    def _layout(lab: np.ndarray, cmask: np.ndarray) -> np.ndarray:
+        import cv2
+
+        m = cmask.astype(np.float32)
+        mean = (lab * m[:, :, None]).sum((0, 1)) / max(m.sum(), 1.0)
+        dev = (lab - mean) * m[:, :, None] / np.array([25.0, 15.0, 15.0], np.float32)
+        cells_num = cv2.resize(dev, (6, 3), interpolation=cv2.INTER_AREA)
+        cells_den = cv2.resize(m, (6, 3), interpolation=cv2.INTER_AREA)
+        cells = cells_num / np.maximum(cells_den[:, :, None], 1e-3)
+        cells = np.clip(cells, -3, 3) * np.minimum(cells_den[:, :, None] * 2, 1.0)
+        return np.concatenate([cells.ravel(), cells_den.ravel(), [1.0]]).astype(np.float32)
+
+    @staticmethod
+    def _radial(mask: np.ndarray) -> np.ndarray:
+        ys, xs = np.nonzero(mask)
+        cy, cx = ys.mean(), xs.mean()
+        ang = np.arctan2(ys - cy, xs - cx)
+        r = np.hypot(ys - cy, xs - cx)
+        bins = ((ang + np.pi) / (2 * np.pi) * 32).astype(int) % 32
+        prof = np.zeros(32, np.float32)
+        np.maximum.at(prof, bins, r.astype(np.float32))
+        prof /= max(float(prof.max()), 1e-6)
+        spec = np.abs(np.fft.rfft(prof))[:9]
+        spec = spec / max(spec[0], 1e-6)
+        return np.concatenate([[1.0], 3.0 * spec[1:]]).astype(np.float32)
+
+    @staticmethod
+    def _hog(canon: np.ndarray) -> np.ndarray:
+        """8-orientation gradient histograms on 4 x 8 cells (unsigned), with per-cell L2 norm."""
+        import cv2
+
+        gx = cv2.Sobel(canon, cv2.CV_32F, 1, 0, ksize=3)
+        gy = cv2.Sobel(canon, cv2.CV_32F, 0, 1, ksize=3)
+        mag = np.hypot(gx, gy)
+        ang = (np.arctan2(gy, gx) % np.pi) / np.pi * 8
+        b0 = np.floor(ang).astype(int) % 8
+        frac = ang - np.floor(ang)
+        h, w = canon.shape
+        cy, cx = 4, 8
+        cell_r = (np.arange(h) * cy // h)[:, None].repeat(w, 1)
+        cell_c = (np.arange(w) * cx // w)[None, :].repeat(h, 0)
+        idx = (cell_r * cx + cell_c) * 8
+        hist = np.zeros(cy * cx * 8, np.float32)
+        np.add.at(hist, (idx + b0).ravel(), (mag * (1 - frac)).ravel())
+        np.add.at(hist, (idx + (b0 + 1) % 8).ravel(), (mag * frac).ravel())
+        hist = hist.reshape(cy * cx, 8)
+        hist /= np.linalg.norm(hist, axis=1, keepdims=True) + 1e-3 + 0.1 * float(np.median(mag) + 1.0)
+        return hist.ravel()
+
+    @staticmethod
+    def _lbp(grey: np.ndarray, cmask: np.ndarray) -> np.ndarray:
+        """Rotation-invariant uniform LBP (8 neighbours) + gradient-magnitude histogram on the object."""
+        import cv2
+
+        g = grey.astype(np.float32)
+        if min(g.shape) < 3:
+            return np.ones(16, np.float32)
+        c = g[1:-1, 1:-1]
+        offs = [(-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1)]
+        bits = np.stack([(g[1 + dy:g.shape[0] - 1 + dy, 1 + dx:g.shape[1] - 1 + dx] >= c + 2.0) for dy, dx in offs])
+        transitions = (bits != np.roll(bits, 1, axis=0)).sum(0)
+        ones = bits.sum(0)
+        code = np.where(transitions <= 2, ones, 9)
+        m = cmask[1:-1, 1:-1]
+        lbp = np.bincount(code[m].ravel(), minlength=10)[:10].astype(np.float32)
+        gm = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))[cmask]
+        gh = np.histogram(np.log1p(gm), bins=6, range=(0, 6))[0].astype(np.float32)
+        return np.concatenate([lbp / max(lbp.sum(), 1), gh / max(gh.sum(), 1)])

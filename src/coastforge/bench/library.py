@@ -1,0 +1,233 @@
+"""Asset-library benchmarks: retrieval accuracy, build time, query time.
+
+    python -m coastforge.bench.library                       # starter-kit library, all benchmarks
+    python -m coastforge.bench.library --models MANIFEST     # a library built from a manifest (e.g. Quaternius)
+    python -m coastforge.bench.library --library LIB --skip-build
+
+Retrieval queries are renders of library assets at a random yaw, a random lighting (sun, water colour,
+haze), a random background (water or ground) and a random GSD in 0.05-0.3 m, cropped like the matcher
+crops detections (1.5 x the object's size); plus, when ``coastforge.synth`` is available, crops of the
+objects of synthetic benchmark scenes. Build time: a 159-asset library (models repeated with slightly
+different real sizes, so every one is rendered) x 6 views, rendered, embedded and indexed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+from ..rng import stage_rng
+
+MATCHED = ("boat", "vehicle", "buoy")  # the categories the matcher assigns assets to
+
+
+def render_queries(lib, per_asset: int, seed: int, gsd_range=(0.05, 0.3)):
+    """(crop, gsd, asset_id, category) tuples rendered from the library's own meshes."""
+    from ..render import random_lighting, render_mesh_view
+
+    out = []
+    for a in lib.assets:
+        if a.mesh_path is None:
+            continue
+        mesh = lib.mesh(a.id)
+        rng = stage_rng(seed, "bench-library", a.id)
+        for q in range(per_asset):
+            gsd = float(math.exp(rng.uniform(math.log(gsd_range[0]), math.log(gsd_range[1]))))
+            yaw = float(rng.uniform(-180, 180))
+            bg = str(rng.choice(["water", "ground"]))
+            light = random_lighting(rng)
+            side = max(a.dims_m[0], a.dims_m[1]) * 1.5
+            size = int(max(12, math.ceil(side / gsd) + 4))
+            img = render_mesh_view(mesh, gsd, size, light, bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
+            out.append((img, gsd, a.id, a.category))
+    return out
+
+
+def synth_queries(lib, seed: int, presets=("marina", "pier_parking"), gsds=(0.1, 0.2), size_m: float = 100.0):
+    """Crops of the boats, vehicles and buoys of synthetic benchmark levels (rendered with the starter kit),
+    cut like the matcher cuts detections; only objects whose asset is in ``lib``. Empty (with the reason)
+    when ``coastforge.synth`` is unavailable."""
+    try:
+        from ..synth import synthesize_level
+        from ..synth_render import mesh_source, render_level
+    except ImportError as exc:
+        return [], f"coastforge.synth is not available ({exc})"
+    from ..matching import crop_rotated
+
+    out = []
+    meshes = mesh_source(None)
+    for i, preset in enumerate(presets):
+        level = synthesize_level(preset, seed + i, size_m=size_m)
+        scene = level.scene
+        for g in gsds:
+            rgb = render_level(level, meshes, g, seed + i)
+            h, w = rgb.shape[:2]
+            gsd = scene.extent_m[0] / w
+            for o in scene.objects:
+                if o.category == "pier" or o.asset_id not in lib:
+                    continue
+                col = o.x_m / gsd + w / 2.0
+                row = h / 2.0 - o.y_m / gsd
+                side = int(math.ceil(max(o.length_m, o.width_m) * 1.5 / gsd)) + 4
+                crop = crop_rotated(rgb, col, row, 0.0, side, side, 1.0)
+                out.append((crop, gsd, o.asset_id, lib.asset(o.asset_id).category))
+    return out, ""
+
+
+def retrieval(lib, queries) -> dict:
+    if not queries:
+        return {"queries": 0}
+    t0 = time.perf_counter()
+    vecs = lib.embed([q[0] for q in queries], [q[1] for q in queries])
+    t_embed = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    hits = lib.search(vecs, k=1)
+    t_search = time.perf_counter() - t0
+    per_cat = defaultdict(lambda: [0, 0, 0])
+    confusions = defaultdict(int)
+    ok_asset = ok_cat = 0
+    for (img, gsd, aid, cat), h in zip(queries, hits):
+        top = h[0][0] if h else None
+        tcat = lib.asset(top).category if top else None
+        ok_asset += top == aid
+        ok_cat += tcat == cat
+        per_cat[cat][0] += 1
+        per_cat[cat][1] += top == aid
+        per_cat[cat][2] += tcat == cat
+        if top != aid:
+            confusions[f"{aid}->{top}"] += 1
+    n = len(queries)
+    # what the matcher does: boats, vehicles and buoys, searched within the detected category
+    matched = [i for i, q in enumerate(queries) if q[3] in MATCHED]
+    within = 0
+    for i in matched:
+        h = lib.search(vecs[i:i + 1], k=1, category=queries[i][3])[0]
+        within += bool(h) and h[0][0] == queries[i][2]
+    m_asset = sum(1 for i in matched if hits[i] and hits[i][0][0] == queries[i][2])
+    m_cat = sum(1 for i in matched if hits[i] and lib.asset(hits[i][0][0]).category == queries[i][3])
+    return {
+        "matched_categories": {"categories": list(MATCHED), "queries": len(matched),
+                               "top1_asset": round(m_asset / max(1, len(matched)), 4),
+                               "top1_category": round(m_cat / max(1, len(matched)), 4),
+                               "top1_asset_within_category": round(within / max(1, len(matched)), 4)},
+        "queries": n, "top1_asset": round(ok_asset / n, 4), "top1_category": round(ok_cat / n, 4),
+        "per_category": {c: {"n": v[0], "asset": round(v[1] / v[0], 3), "category": round(v[2] / v[0], 3)}
+                         for c, v in sorted(per_cat.items())},
+        "ms_per_query": round(1000 * (t_embed + t_search) / n, 3),
+        "ms_embed_per_query": round(1000 * t_embed / n, 3),
+        "top_confusions": dict(sorted(confusions.items(), key=lambda t: -t[1])[:10]),
+    }
+
+
+def single_query_ms(lib, queries, n: int = 50) -> float:
+    """Wall time of lib.query on one crop at a time (what the matcher pays per object)."""
+    sel = queries[:n]
+    t0 = time.perf_counter()
+    for img, gsd, _aid, _cat in sel:
+        lib.query(img, gsd, k=5)
+    return round(1000 * (time.perf_counter() - t0) / max(1, len(sel)), 3)
+
+
+def build_benchmark(manifest: Path | None, n_assets: int, workers: int | None, seed: int) -> dict:
+    """Build a ``n_assets`` library by repeating the models of ``manifest`` (or the starter kit) with
+    slightly different real sizes (so each is really rendered), 6 views each."""
+    from ..assets.library import build_library, read_manifest
+
+    if manifest is None:
+        from ..assets.kit import MANIFEST_NAME, kit_dir
+
+        manifest = kit_dir() / MANIFEST_NAME
+    specs, _ = read_manifest(manifest)
+    rng = stage_rng(seed, "bench-library-build")
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "src"
+        src.mkdir()
+        entries = []
+        for i in range(n_assets):
+            s = specs[i % len(specs)]
+            link = src / f"{i:03d}_{s.mesh.name}"
+            link.symlink_to(s.mesh)
+            e = {"id": f"{s.id}_{i:03d}", "category": s.category, "mesh": link.name,
+                 "up_axis": s.up_axis, "forward_axis": s.forward_axis}
+            jitter = float(rng.uniform(0.9, 1.1)) if i >= len(specs) else 1.0
+            if s.length_m:
+                e["length_m"] = round(s.length_m * jitter, 4)
+            elif s.height_m:
+                e["height_m"] = round(s.height_m * jitter, 4)
+            entries.append({k: v for k, v in e.items() if v is not None})
+        (src / "manifest.json").write_text(json.dumps({"assets": entries}))
+        cpu0 = _cpu_seconds()
+        t0 = time.perf_counter()
+        lib = build_library(src / "manifest.json", Path(tmp) / "lib", workers=workers)
+        seconds = time.perf_counter() - t0
+        cpu = _cpu_seconds() - cpu0
+        return {"assets": len(lib.assets), "views": sum(len(a.views) for a in lib.assets), "rows": lib.index.rows,
+                "seconds": round(seconds, 2), "cpu_seconds": round(cpu, 2),
+                "cpu_seconds_per_core_of_2": round(cpu / 2, 2), "skipped": len(lib.build_report.skipped)}
+
+
+def _cpu_seconds() -> float:
+    """CPU time of this process and its finished children: a figure that contention does not inflate much."""
+    import resource
+
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m coastforge.bench.library", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--library", help="An existing library folder (default: build from --models or the kit).")
+    ap.add_argument("--models", help="A manifest to build the benchmark library from (e.g. Quaternius).")
+    ap.add_argument("--per-asset", type=int, default=12, help="Rendered queries per asset.")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--build-assets", type=int, default=159)
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--skip-build", action="store_true", help="Skip the build-time benchmark.")
+    ap.add_argument("--skip-synth", action="store_true", help="Skip the synthetic-scene crops.")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    from ..assets.library import Library, build_library, default_library
+
+    report: dict = {"note": "timings on a shared 2-core machine (under contention)"}
+    tmp = None
+    t0 = time.perf_counter()
+    if args.library:
+        lib = Library.load(args.library)
+    elif args.models:
+        tmp = tempfile.mkdtemp(prefix="cf-bench-lib-")
+        lib = build_library(args.models, Path(tmp) / "lib", workers=args.workers)
+    else:
+        lib = default_library()
+    report["library"] = {"root": str(lib.root), "assets": len(lib.assets), "rows": lib.index.rows,
+                         "load_or_build_s": round(time.perf_counter() - t0, 2)}
+    try:
+        queries = render_queries(lib, args.per_asset, args.seed)
+        report["rendered_queries"] = retrieval(lib, queries)
+        report["rendered_queries"]["ms_single_query"] = single_query_ms(lib, queries)
+        if not args.skip_synth:
+            try:
+                sq, why = synth_queries(lib, args.seed)
+            except Exception as exc:  # another stage's code: report, do not lose the other figures
+                sq, why = [], f"synthetic crops failed: {type(exc).__name__}: {exc}"
+            report["synthetic_crops"] = retrieval(lib, sq) if sq else {"queries": 0, "why": why}
+        if not args.skip_build:
+            report["build"] = build_benchmark(Path(args.models) if args.models else None, args.build_assets,
+                                              args.workers, args.seed)
+    finally:
+        if tmp:
+            shutil.rmtree(tmp, ignore_errors=True)
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
