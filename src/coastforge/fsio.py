@@ -130,6 +130,8 @@ def write_geotiff(path: str | os.PathLike, array: np.ndarray, transform, crs=Non
     profile = dict(
         driver="GTiff", width=a.shape[2], height=a.shape[1], count=a.shape[0], dtype=str(a.dtype),
         transform=Affine(*transform), crs=crs, compress="deflate", nodata=nodata,
+        # the floating-point predictor makes smooth height maps compress several times better
+        predictor=3 if np.issubdtype(a.dtype, np.floating) else 2,
     )
     if a.shape[1] >= 256 and a.shape[2] >= 256:
         profile.update(tiled=True, blockxsize=256, blockysize=256)

@@ -200,17 +200,21 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         _write_stage_outputs(out, image, cleaned, class_map, dets, terrain, veg)
         for name, m in veg.masks.items():
             write_png(out / "pcg" / f"{name}.png", m)
-    exports = {}
-    if req.exports:
-        with timer.stage("export"):
-            from .export import export_scene
-
-            scene_for_export = scene
-            exports = export_scene(scene_for_export, list(req.exports), out, overwrite=True, scene_dir=out)
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)
     scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
-    scene_path = save_scene(scene, out)
+    scene_path = save_scene(scene, out)  # complete before exporting: exporters read the folder
+    exports: dict = {}
+    if req.exports:
+        from .export import export_scene
+
+        with timer.stage("export"):
+            exports = export_scene(out, list(req.exports), out, overwrite=True, config=config.export,
+                                   library=library)
+        timings["export"] = timer.t["export"]
+        timings["total"] = round(timings["total"] + timings["export"], 3)
+        scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
+        scene_path = save_scene(scene, out, rasters=False)
     report_path = None
     if req.report:
         try:

@@ -347,15 +347,18 @@ def vegetation_csv(v: Vegetation) -> str:
     return buf.getvalue()
 
 
-def save_scene(scene: Scene, folder: str | Path, filename: str = "scene.json") -> Path:
+def save_scene(scene: Scene, folder: str | Path, filename: str = "scene.json", rasters: bool = True) -> Path:
     """Write scene.json (or ``filename``, e.g. truth.json) and its rasters into ``folder``.
 
-    Each file is written atomically; the JSON last, so a scene file always points at complete rasters."""
+    Each file is written atomically; the JSON last, so a scene file always points at complete rasters.
+    ``rasters=False`` rewrites only the JSON (e.g. to add timings to a scene already saved)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     text = dumps(scene)  # validate serialisability before touching any file
     scene_from_dict(json.loads(text))
     grid = scene.grid
+    if not rasters:
+        return atomic_write_text(folder / filename, text)
     if scene.height is not None:
         tr = scene.transform if scene.transform else grid.scene_transform()
         write_geotiff(_resolve(folder, scene.terrain_paths["height"], "terrain.height"),
