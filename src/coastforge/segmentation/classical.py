@@ -1,0 +1,604 @@
+"""The default segmenter: no weights, a second or two per 2048 x 2048 image on two cores.
+
+Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled):
+
+1. Per-pixel colour (CIE Lab, saturation, excess green, blue dominance) and texture at two metric
+   scales (std of lightness over ~1.2 m and ~4 m, gradient energy, gradient coherence, share of bright
+   pixels), plus colour and texture averaged over ~8 m as context.
+2. Water first, because everything downstream depends on it: connected regions that are smooth at both
+   scales, cut at colour edges, water-coloured (blue, turquoise, green-olive, very dark; neutral grey
+   only when very large) and large in metres and pixels. Same-coloured smaller pieces join; water then
+   grows into connected pixels of its local colour, pale shallows and cast shadows. Gaps narrower than
+   ~2 x ``water_close_m`` are closed, enclosed non-vegetated blobs up to ``water_hole_max_m2`` (boats,
+   pier clusters: objects whose terrain is water) are filled, as are fragmented narrow structures still
+   tied to the shore (``pier_open_m``). At full resolution the open waterline is re-decided per pixel
+   by comparing its colour with the local water and local land-class colours.
+3. Land: colour/texture rules (after removing the image's colour cast) label the pixels they are sure
+   of; a per-image Gaussian classifier (QDA) trained on those pixels (self-training) labels the rest,
+   so thresholds only need to be right for the clear cases of each image.
+4. Probabilities are box-smoothed (majority filter); priors: rocks are revetments near water, trees
+   are textured and not a straight edge; car-sized blobs on pavement become asphalt (parked cars are
+   transient); regions smaller than ``min_region_m2`` merge into their surroundings.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy import ndimage as ndi
+
+from ..classes import ASPHALT, DIRT, GRASS, N_CLASSES, ROCKS, SAND, SIDEWALK, TREES, WATER
+from ..config import SegmentConfig
+from ..errors import InputError
+from ..rng import stage_seed
+from ..types import ClassMap, GeoImage
+
+LAND = (ASPHALT, SIDEWALK, GRASS, TREES, DIRT, ROCKS, SAND)
+
+
+def _odd(n: float) -> int:
+    k = max(3, int(round(n)))
+    return k if k % 2 else k + 1
+
+
+def _box_std(x: np.ndarray, k: int) -> np.ndarray:
+    m = cv2.blur(x, (k, k))
+    sq = cv2.blur(x * x, (k, k))
+    return np.sqrt(np.maximum(sq - m * m, 0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class Features:
+    """Per-pixel features at the working resolution (float32 arrays, H x W)."""
+
+    L: np.ndarray  # CIE lightness 0..100
+    a: np.ndarray  # green (-) .. red (+)
+    b: np.ndarray  # blue (-) .. yellow (+)
+    sat: np.ndarray  # HSV saturation 0..1
+    exg: np.ndarray  # excess green on chromatic coordinates
+    bdom: np.ndarray  # blue minus max(red, green), 0..1 units
+    tex1: np.ndarray  # std of L over ~1.2 m
+    tex2: np.ndarray  # std of L over ~4 m
+    grad: np.ndarray  # mean gradient magnitude over ~1.2 m
+    bright: np.ndarray  # share of bright pixels (L > 62) within ~3 m: car roofs, decks, not canopies
+    coh: np.ndarray  # gradient coherence over ~2 m: 1 at straight edges, low in isotropic texture (canopies)
+    ctx: np.ndarray  # (H, W, 4) L, a, b, tex1 averaged over ~8 m
+    gsd_m: float
+
+    def stack(self) -> np.ndarray:
+        """(H*W, F) matrix for the classifier."""
+        # texture is heavy-tailed: its logarithm suits the Gaussian class models far better
+        lg = np.log1p
+        cols = [self.L, self.a, self.b, self.sat, self.exg, self.bdom, lg(self.tex1), lg(self.tex2), lg(self.grad),
+                self.bright, self.coh, self.ctx[..., 0], self.ctx[..., 1], self.ctx[..., 2], lg(self.ctx[..., 3])]
+        return np.stack([c.ravel() for c in cols], axis=1).astype(np.float32)
+
+
+def compute_features(rgb: np.ndarray, gsd_m: float) -> Features:
+    f = rgb.astype(np.float32) * (1.0 / 255.0)
+    lab = cv2.cvtColor(f, cv2.COLOR_RGB2LAB)
+    L, a, b = lab[..., 0], lab[..., 1], lab[..., 2]
+    mx, mn = f.max(axis=2), f.min(axis=2)
+    sat = (mx - mn) / (mx + 1e-3)
+    s = f.sum(axis=2) + 1e-3
+    exg = (2.0 * f[..., 1] - f[..., 0] - f[..., 2]) / s
+    bdom = f[..., 2] - np.maximum(f[..., 0], f[..., 1])
+    k1, k2, kc = _odd(1.2 / gsd_m), _odd(4.0 / gsd_m), _odd(8.0 / gsd_m)
+    tex1 = _box_std(L, k1)
+    tex2 = _box_std(L, k2)
+    gx = cv2.Sobel(L, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(L, cv2.CV_32F, 0, 1, ksize=3)
+    grad = cv2.blur(np.sqrt(gx * gx + gy * gy), (k1, k1))
+    ctx = cv2.blur(np.dstack([L, a, b, tex1]), (kc, kc))
+    kb = _odd(3.0 / gsd_m)
+    bright = cv2.blur((L > 62.0).astype(np.float32), (kb, kb))
+    kh = _odd(2.0 / gsd_m)
+    jxx, jyy, jxy = (cv2.blur(v, (kh, kh)) for v in (gx * gx, gy * gy, gx * gy))
+    coh = np.sqrt((jxx - jyy) ** 2 + 4.0 * jxy * jxy) / (jxx + jyy + 1e-3)
+    return Features(L, a, b, sat, exg, bdom, tex1, tex2, grad, bright, coh, ctx, gsd_m)
+
+
+# ---------------------------------------------------------------------------------------------- water
+
+
+def _disk(radius_px: float) -> np.ndarray:
+    r = max(1, int(round(radius_px)))
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def water_colour(F: Features) -> np.ndarray:
+    """Pixels whose colour water can have: blue/cyan, dark olive-green, very dark, or dark neutral grey."""
+    L, a, b = F.L, F.a, F.b
+    # blue water: saturated blues have a* > 0, so allow red-green up to ~0.4 |b*| (not purple)
+    bluish = ((b < -3.0) | (F.bdom > 0.015)) & (L < 88) & (a < 4.0 + 0.4 * np.maximum(-b, 0.0))
+    cyan = (a < -6.0) & (b < 6.0) & (L < 85)  # clear shallow water over sand: bright turquoise
+    # green-olive water (algae, turbid basins): green at least as strong as yellow, unlike dark forest
+    olive = (a < -4.0) & (L < 52) & (b < 1.2 * (-a) + 1.0) & (b > -40.0)
+    dark = (L < 20.0) & (a < 6.0)
+    neutral = (np.hypot(a, b) < 9.0) & (L < 55.0) & (a < 4.0)
+    return bluish | cyan | olive | dark | neutral
+
+
+def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
+    """Bool mask of water at the working resolution (boats and piers over water included).
+
+    With ``return_open`` also the open water alone (before boats, piers and gaps were filled)."""
+    gsd = F.gsd_m
+    px_m2 = gsd * gsd
+    h, w = F.L.shape
+    # Smoothness adapts a little to the image's own noise floor (JPEG, sensor): the 20th percentile of
+    # fine texture is what "flat" looks like here.
+    floor = float(np.percentile(F.tex1, 20))
+    t1 = max(0.8, 2.5 * floor)
+    t2 = max(1.5, 3.0 * floor)
+    smooth = (F.tex1 < t1) & (F.tex2 < t2)
+    colour = water_colour(F)
+    # cut along colour edges too: water and asphalt of equal lightness meet without any texture
+    ga = np.hypot(cv2.Sobel(F.a, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.a, cv2.CV_32F, 0, 1, ksize=3))
+    gb = np.hypot(cv2.Sobel(F.b, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.b, cv2.CV_32F, 0, 1, ksize=3))
+    cedge = (ga + gb) * 0.125 > 5.0
+    cand = (smooth & colour & ~cedge).astype(np.uint8)
+    n, lab, stats, _c = cv2.connectedComponentsWithStats(cand, connectivity=4)
+    if n <= 1:
+        return (np.zeros((h, w), bool),) * 2 if return_open else np.zeros((h, w), bool)
+    areas_m2 = stats[1:, cv2.CC_STAT_AREA] * px_m2
+    # a region confirms itself as water only when it is large in metres and in pixels (at 8 m/px a
+    # few dark forest pixels cover 1500 m2); smaller pieces join later by matching a confirmed colour
+    big = np.flatnonzero((areas_m2 >= cfg.water_min_m2) & (stats[1:, cv2.CC_STAT_AREA] >= 200)) + 1
+    if big.size == 0:
+        return (np.zeros((h, w), bool),) * 2 if return_open else np.zeros((h, w), bool)
+    # Per-component colour statistics decide what each big smooth region is.
+    idx = lab.ravel()
+    cnt = np.bincount(idx, minlength=n).astype(np.float64)
+    cnt[cnt == 0] = 1
+    mean = lambda v: np.bincount(idx, weights=v.ravel().astype(np.float64), minlength=n) / cnt  # noqa: E731
+    mL, ma, mb, mt2, mexg = mean(F.L), mean(F.a), mean(F.b), mean(F.tex2), mean(F.exg)
+    mchroma = np.hypot(ma, mb)
+    image_m2 = h * w * px_m2
+    keep = np.zeros(n, bool)
+    for c in big:
+        area = stats[c, cv2.CC_STAT_AREA] * px_m2
+        lawn = mexg[c] > 0.3 and mchroma[c] > 20.0  # bright green: a lawn or a sports field
+        cast = ((mb[c] < -3.0) or (ma[c] < -4.0 and mL[c] < 50 and mb[c] < 1.2 * -ma[c] + 1.0)
+                or (mL[c] < 18 and mb[c] < 8.0) or (ma[c] < -6.0 and mb[c] < 6.0))
+        if cast and not lawn:
+            keep[c] = True
+        elif mchroma[c] < 9.0:
+            # Neutral grey: asphalt looks like this too. Only a region that is very large and very
+            # flat is taken as (overcast or turbid) water.
+            keep[c] = area >= max(20.0 * cfg.water_min_m2, 0.12 * image_m2) and mt2[c] < 0.7 * t2
+    if keep.sum() > 1:
+        # The largest region sets the scene's water colour. Another region on its own needs a similar
+        # colour, or to be very flat: dark forest or hill shadow seen from orbit is dark and fairly
+        # smooth too, and a false lake floods the terrain.
+        ids_k = np.flatnonzero(keep)
+        main = ids_k[np.argmax(stats[ids_k, cv2.CC_STAT_AREA])]
+        for c in ids_k:
+            de = math.sqrt((mL[c] - mL[main]) ** 2 + (ma[c] - ma[main]) ** 2 + (mb[c] - mb[main]) ** 2)
+            if c != main and de >= 8.0 and mt2[c] >= 0.5 * t2:
+                keep[c] = False
+    if keep.any():
+        # Water broken up by boats and piers leaves smaller smooth pieces: they join when they lie near
+        # confirmed water (within ~40 m) and their colour matches it closely. Far inland, a dark
+        # shadowed slope can match a dark sea's colour.
+        ref = np.flatnonzero(keep)
+        sized = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] * px_m2 >= 40.0)
+        sized = sized[(sized > 0) & ~keep[sized]]
+        if sized.size:
+            d = np.sqrt((mL[sized, None] - mL[None, ref]) ** 2 + (ma[sized, None] - ma[None, ref]) ** 2
+                        + (mb[sized, None] - mb[None, ref]) ** 2).min(axis=1)
+            match = sized[d < 5.0]
+            reach = max(40.0 / gsd, 6.0)
+            for _ in range(4):  # pieces chain outwards from confirmed water, one reach at a time
+                dist = cv2.distanceTransform((~keep[lab]).astype(np.uint8), cv2.DIST_L2, 3)
+                touches = np.bincount(lab[dist <= reach].ravel(), minlength=n) > 0
+                new = match[touches[match] & ~keep[match]]
+                if new.size == 0:
+                    break
+                keep[new] = True
+    water = keep[lab]
+    if not water.any():
+        return (water, water) if return_open else water
+    # Grow into connected pixels of the local water colour that texture excluded (water beside boats,
+    # piers and the shore, wakes): the reference colour is water's own, averaged over ~10 m, so a
+    # bay and a darker basin in the same image each keep their colour.
+    k = _odd(10.0 / gsd)
+    wf = water.astype(np.float32)
+    # shallows over sand or mud: pale, low-chroma green-grey; only ever joined next to water of
+    # nearly the same colour (the ΔE test below), which keeps lawns (more chroma) and sand (warmer) out
+    murky = (np.hypot(F.a, F.b) < 14.0) & (F.a < -2.0) & (F.L < 75.0) & (F.tex1 < 4.0)
+    # each pass reaches ~5 m further (the reference is only defined near water): gradual shallows
+    # need several passes; the water-colour gate keeps the growth off beaches and lawns
+    for _ in range(6):
+        before = int(water.sum())
+        norm = cv2.blur(wf, (k, k))
+        ok = norm > 1e-3
+        Lr, ar, br = (cv2.blur(v * wf, (k, k)) / np.maximum(norm, 1e-3) for v in (F.L, F.a, F.b))
+        de2 = (F.L - Lr) ** 2 + (F.a - ar) ** 2 + (F.b - br) ** 2
+        # shadows cast on water (quay walls, piers, boats): darker, with the chroma scaled down alike
+        sc = np.clip(F.L / np.maximum(Lr, 1e-3), 0.0, 1.0)
+        shadow = (F.L < Lr - 3.0) & (F.L > 0.25 * Lr) & (np.abs(F.a - ar * sc) + np.abs(F.b - br * sc) < 6.0)
+        # very flat pixels continuing the local water colour join whatever their hue (turbid green
+        # shallows); a lawn is neither that flat nor that close to the water colour
+        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow)
+        n2, lab2 = cv2.connectedComponents((close | water).astype(np.uint8), connectivity=8)
+        ids2 = np.unique(lab2[water])
+        water = np.isin(lab2, ids2[ids2 > 0])
+        wf = water.astype(np.float32)
+        if int(water.sum()) - before < 0.002 * water.size:
+            break
+    # vegetation (yellow-green, textured, far from the water colour) keeps an enclosed blob land;
+    # teal/cyan shadows between boats are not vegetation
+    veg = (((F.exg > 0.12) & (F.b > 0.0)) | ((F.a < -8.0) & (F.b > 5.0))) & (de2 > 100.0) & (F.tex1 > 1.0)
+    closed = close_water(water, F, cfg, veg)
+    return (closed, water) if return_open else closed
+
+
+def close_water(water: np.ndarray, F: Features, cfg: SegmentConfig, veg: np.ndarray | None = None) -> np.ndarray:
+    """Close narrow gaps (boats side by side, pier fingers, gangways) and fill enclosed blobs up to a
+    pier-cluster size, unless they look vegetated (islands with trees or grass stay land).
+
+    A blob cut by the image border counts as enclosed when most of its outline is water: pier clusters
+    often run off the edge of a crop."""
+    gsd = F.gsd_m
+    h, w = water.shape
+    r = cfg.water_close_m / gsd
+    if r >= 0.75:
+        closed = cv2.morphologyEx(water.astype(np.uint8), cv2.MORPH_CLOSE, _disk(r),
+                                  borderType=cv2.BORDER_REPLICATE).astype(bool)
+    else:
+        closed = water.copy()
+    if veg is None:
+        veg = (F.a < -8.0) & (F.tex1 > 2.0)
+    padded = np.pad(closed, 1, constant_values=True)
+    holes = (ndi.binary_fill_holes(padded) & ~padded)[1:-1, 1:-1]
+    if holes.any():
+        n, lab, stats, _c = cv2.connectedComponentsWithStats(holes.astype(np.uint8), connectivity=4)
+        idx = lab.ravel()
+        cnt = np.maximum(np.bincount(idx, minlength=n), 1).astype(np.float64)
+        vfrac = np.bincount(idx, weights=veg.ravel().astype(np.float64), minlength=n) / cnt
+        area_m2 = stats[:, cv2.CC_STAT_AREA] * gsd * gsd
+        # outline of each blob: how much of it is image border rather than water
+        ring = cv2.dilate(holes.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) & ~holes
+        border = np.zeros_like(holes)
+        border[0, :] = border[-1, :] = True
+        border[:, 0] = border[:, -1] = True
+        lab_d = cv2.dilate(lab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int32)
+        ring_w = np.bincount(lab_d[ring].ravel(), minlength=n).astype(np.float64)
+        on_border = np.bincount(lab[border & holes].ravel(), minlength=n).astype(np.float64)
+        water_share = ring_w / np.maximum(ring_w + on_border, 1.0)
+        bright = np.bincount(idx, weights=(F.L > 65.0).ravel().astype(np.float64), minlength=n) / cnt
+        # a blob mostly outlined by water, or a bright (boats, decks) strip along the border
+        enclosed = (water_share >= 0.6) | ((water_share >= 0.4) & (bright >= 0.2))
+        fill = (area_m2 <= cfg.water_hole_max_m2) & (vfrac < 0.3) & enclosed
+        fill |= (area_m2 <= 60.0) & (on_border == 0)  # anything boat-sized in open water is filled
+        fill[0] = False
+        closed |= fill[lab]
+    return _absorb_structures(closed, F, cfg, veg)
+
+
+def _absorb_structures(water: np.ndarray, F: Features, cfg: SegmentConfig, veg: np.ndarray) -> np.ndarray:
+    """Pier clusters still tied to the shore (boats moored at the root close the gap) are water too.
+
+    Land is opened with a disk of ``pier_open_m``: what does not belong to a large opened land mass
+    is a narrow structure or a small island. Fragmented ones (fingers and boats with water between
+    them, so closing them adds much area) become water; solid ones (breakwaters, jetties, islets) and
+    vegetated ones stay land."""
+    if cfg.pier_open_m <= 0 or water.all() or not water.any():
+        return water
+    gsd = F.gsd_m
+    land = (~water).astype(np.uint8)
+    opened = cv2.morphologyEx(land, cv2.MORPH_OPEN, _disk(cfg.pier_open_m / gsd))
+    n, lab, st, _c = cv2.connectedComponentsWithStats(opened, connectivity=8)
+    big_ids = np.flatnonzero(st[:, cv2.CC_STAT_AREA] * gsd * gsd > cfg.water_hole_max_m2)
+    big = np.isin(lab, big_ids[big_ids > 0])
+    cand = (land > 0) & ~big
+    n, lab, st, _c = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=8)
+    out = water.copy()
+    k = _disk(3.0 / gsd)
+    for i in range(1, n):
+        area = st[i, cv2.CC_STAT_AREA] * gsd * gsd
+        if area < 20.0 or area > cfg.water_hole_max_m2:
+            continue
+        x, y, w, h = st[i, :4]
+        pad = k.shape[0]
+        y0, y1, x0, x1 = max(0, y - pad), min(lab.shape[0], y + h + pad), max(0, x - pad), min(lab.shape[1], x + w + pad)
+        comp = (lab[y0:y1, x0:x1] == i).astype(np.uint8)
+        if veg[y0:y1, x0:x1][comp > 0].mean() >= 0.3:
+            continue
+        solidity = comp.sum() / max(1, int(cv2.morphologyEx(comp, cv2.MORPH_CLOSE, k).sum()))
+        if solidity < 0.95:
+            out[y0:y1, x0:x1] |= comp > 0
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ land
+
+
+def colour_cast(F: Features, water: np.ndarray) -> tuple[float, float]:
+    """The image's colour cast (a*, b*) estimated from land pixels that are nearly neutral (pavement,
+    roofs): haze and white balance shift every colour, and the rules below want true neutrals at 0."""
+    land = ~water
+    # dark-to-mid neutrals (pavement, shadows); bright ones are often sand or concrete with a hue
+    near = land & (np.hypot(F.a, F.b) < 12.0) & (F.L > 15) & (F.L < 60)
+    if near.sum() < 200:
+        return 0.0, 0.0
+    a0, b0 = float(np.median(F.a[near])), float(np.median(F.b[near]))
+    # a cast is small; anything larger means the "neutrals" are really a coloured surface
+    return float(np.clip(a0, -5.0, 5.0)), float(np.clip(b0, -8.0, 8.0))
+
+
+def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0) -> np.ndarray:
+    """Rule labels (int8, -1 = unsure) for pixels whose class is clear from colour and texture alone."""
+    a0, b0 = colour_cast(F, water)
+    L, t1, t2 = F.L, F.tex1, F.tex2
+    a, b = F.a - a0, F.b - b0
+    chroma = np.hypot(a, b)
+    green = ((a < -5.0) & (b > -2.0)) | (F.exg > 0.08)
+    rules = {
+        # canopies are textured at the 4 m scale; in shade they are dark whatever their hue
+        TREES: ((green & (L < 48)) | (L < 30)) & (t2 > 6.0) & (t1 > 3.5) & (a < 8.0) & (F.bright < 0.03),
+        GRASS: green & (L > 20) & (t1 < 3.5) & (t2 < 7.0),
+        ASPHALT: (chroma < 8.0) & (L > 12) & (L < 55) & (t1 < 4.0) & (a > -5.0),
+        SIDEWALK: (chroma < 10.0) & (L >= 60) & (t1 < 6.0) & (a > -5.0),
+        # bare earth: warm (orange-yellow hue), some chroma, mid lightness; sand is the light version
+        DIRT: (a > 1.0) & (b > 6.0) & (chroma > 7.0) & (L > 25) & (L < 60) & (t1 < 6.0),
+        SAND: (L >= 60) & (b > 9.0) & (a > -3.0) & (a < 10.0),
+        # riprap: mid-grey, fine-grained texture, only a weak colour cast
+        ROCKS: (chroma < 16.0) & (L > 33) & (L < 72) & (t1 > 5.0) & (a > -9.0) & (a < 6.0),
+    }
+    seeds = np.full(L.shape, -1, np.int8)
+    count = np.zeros(L.shape, np.uint8)
+    for cid, m in rules.items():
+        count += m
+    for cid, m in rules.items():
+        seeds[m & (count == 1)] = cid
+    if rocks_shore_m > 0 and water.any():
+        far = ndi.distance_transform_edt(~water) * F.gsd_m > rocks_shore_m
+        seeds[(seeds == ROCKS) & far] = -1
+    seeds[water] = -1
+    return seeds
+
+
+def _train_predict(X: np.ndarray, y: np.ndarray, Xall: np.ndarray, seed: int, per_class: int = 4000,
+                   reg: float = 0.05):
+    """Fit one full-covariance Gaussian per class (QDA) on balanced seed samples; return the classes and
+    their posterior probabilities for ``Xall``. QDA predicts a megapixel in tens of milliseconds,
+    where tree ensembles take seconds on two busy cores."""
+    rng = np.random.default_rng(seed)
+    mu_all = X.mean(axis=0)
+    sd_all = X.std(axis=0) + 1e-3
+    Z = (X - mu_all) / sd_all
+    Zall = ((Xall - mu_all) / sd_all).astype(np.float32)
+    classes, loglik = [], []
+    eye = np.eye(X.shape[1], dtype=np.float64)
+    for c in np.unique(y):
+        idx = np.flatnonzero(y == c)
+        if idx.size > per_class:
+            idx = rng.choice(idx, per_class, replace=False)
+        zc = Z[idx].astype(np.float64)
+        mu = zc.mean(axis=0)
+        cov = np.cov(zc, rowvar=False) if idx.size > 1 else eye.copy()
+        cov = (1.0 - reg) * cov + reg * eye  # shrinkage keeps thin classes well posed
+        chol = np.linalg.cholesky(cov)
+        inv = np.linalg.inv(chol).astype(np.float32)
+        d = Zall @ inv.T
+        d -= (mu.astype(np.float32) @ inv.T)[None, :]
+        ll = -0.5 * np.einsum("ij,ij->i", d, d) - float(np.log(np.diag(chol)).sum())
+        classes.append(int(c))
+        loglik.append(ll)
+    ll = np.stack(loglik, axis=1)
+    ll -= ll.max(axis=1, keepdims=True)
+    p = np.exp(ll)
+    p /= p.sum(axis=1, keepdims=True)
+    return np.array(classes), p.astype(np.float32)
+
+
+def _absorb_into_asphalt(ids: np.ndarray, gsd_m: float, max_m2: float) -> np.ndarray:
+    """Parked cars (and their rows) are transient objects on pavement: small blobs of rocks, dirt or
+    sand mostly surrounded by pavement, and small sidewalk or car-sized dark "tree" blobs mostly
+    surrounded by asphalt, become asphalt. Each class is taken on its own so a row of cars along a
+    lot's kerb is not merged with the kerb."""
+    if max_m2 <= 0:
+        return ids
+    out = ids.copy()
+    paved = (ASPHALT, SIDEWALK)
+    for cls, limit, ring_classes in ((ROCKS, max_m2, paved), (DIRT, max_m2, paved), (SAND, max_m2, paved),
+                                     (SIDEWALK, max_m2, (ASPHALT,)), (TREES, min(max_m2, 12.0), (ASPHALT,))):
+        out = _absorb(out, cls, limit, gsd_m, ring_classes)
+    return out
+
+
+def _absorb(ids: np.ndarray, cls: int, max_m2: float, gsd_m: float, ring_classes: tuple[int, ...]) -> np.ndarray:
+    cand = (ids == cls).astype(np.uint8)
+    n, lab, stats, _c = cv2.connectedComponentsWithStats(cand, connectivity=8)
+    if n <= 1:
+        return ids
+    area = stats[:, cv2.CC_STAT_AREA] * gsd_m * gsd_m
+    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int32)
+    ring = (lab_d > 0) & (lab == 0)
+    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
+    ring_a = np.bincount(lab_d[ring & np.isin(ids, ring_classes)], minlength=n).astype(np.float64)
+    share = ring_a / np.maximum(ring_n, 1.0)
+    absorb = (area <= max_m2) & (share >= 0.6)
+    absorb[0] = False
+    out = ids.copy()
+    out[absorb[lab]] = ASPHALT
+    return out
+
+
+def _merge_small(ids: np.ndarray, min_px: int, fixed: np.ndarray) -> np.ndarray:
+    """Regions smaller than ``min_px`` take the class of the nearest larger region (``fixed`` kept)."""
+    if min_px <= 1:
+        return ids
+    small = np.zeros(ids.shape, bool)
+    for c in np.unique(ids):
+        n, lab, stats, _ = cv2.connectedComponentsWithStats((ids == c).astype(np.uint8), connectivity=4)
+        tiny = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] < min_px)
+        tiny = tiny[tiny > 0]
+        if tiny.size:
+            small |= np.isin(lab, tiny)
+    small &= ~fixed
+    if not small.any() or small.all():
+        return ids
+    _d, (ri, ci) = ndi.distance_transform_edt(small, return_indices=True)
+    return ids[ri, ci]
+
+
+def refine_water_edge(rgb: np.ndarray, ids_small: np.ndarray, water_small: np.ndarray, F: Features,
+                      band_small: int = 2, open_water: np.ndarray | None = None) -> np.ndarray:
+    """Upsample the class ids to the image grid and sharpen the waterline at full resolution.
+
+    Within ``band_small`` working pixels of the water edge, a full-resolution pixel is water when its
+    colour is nearer the local water colour than the local land colour (both averaged over ~6 m at
+    the working resolution). Land pixels turned to water become WATER; water turned land takes the
+    nearest land class."""
+    H, W = rgb.shape[:2]
+    h, w = ids_small.shape
+    ids = cv2.resize(ids_small, (W, H), interpolation=cv2.INTER_NEAREST)
+    if not water_small.any() or water_small.all():
+        return ids
+    k = np.ones((2 * band_small + 1, 2 * band_small + 1), np.uint8)
+    wu = water_small.astype(np.uint8)
+    band_s = cv2.dilate(wu, k).astype(bool) & ~cv2.erode(wu, k).astype(bool)
+    band = cv2.resize(band_s.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+    ys, xs = np.nonzero(band)
+    kk = _odd(6.0 / F.gsd_m)
+    wf = water_small.astype(np.float32)
+    nw = cv2.blur(wf, (kk, kk))
+    nl = cv2.blur(1.0 - wf, (kk, kk))
+    lab_s = np.dstack([F.L, F.a, F.b])
+    mw = cv2.blur(lab_s * wf[..., None], (kk, kk)) / np.maximum(nw, 1e-3)[..., None]
+    ml = cv2.blur(lab_s * (1.0 - wf)[..., None], (kk, kk)) / np.maximum(nl, 1e-3)[..., None]
+    # sample the small maps at the band pixels (nearest working pixel is enough for ~6 m averages)
+    sy = np.minimum((ys * h) // H, h - 1)
+    sx = np.minimum((xs * w) // W, w - 1)
+    ok = (nw[sy, sx] > 0.05) & (nl[sy, sx] > 0.05)
+    ys, xs, sy, sx = ys[ok], xs[ok], sy[ok], sx[ok]
+    if ys.size == 0:
+        return ids
+    # full-resolution colour of the band pixels, lightly smoothed against JPEG noise
+    y0, y1, x0, x1 = max(0, ys.min() - 1), min(H, ys.max() + 2), max(0, xs.min() - 1), min(W, xs.max() + 2)
+    sub = cv2.blur(rgb[y0:y1, x0:x1], (3, 3))
+    px = sub[ys - y0, xs - x0].astype(np.float32).reshape(-1, 1, 3) * (1.0 / 255.0)
+    lab = cv2.cvtColor(px, cv2.COLOR_RGB2LAB).reshape(-1, 3)
+    # nearest land class at the working resolution: the land side is compared with the colour of that
+    # class nearby (a dark revetment between water and a bright lawn is not judged by the lawn)
+    land_s = ~water_small
+    _d, (ri, ci) = ndi.distance_transform_edt(~land_s, return_indices=True)
+    land_ids = ids_small[ri, ci]
+    near_cls = land_ids[sy, sx]
+    ml_px = ml[sy, sx].copy()
+    for c in np.unique(near_cls):
+        cf = (ids_small == c).astype(np.float32)
+        nc = cv2.blur(cf, (kk, kk))
+        mc = cv2.blur(lab_s * cf[..., None], (kk, kk)) / np.maximum(nc, 1e-3)[..., None]
+        sel = (near_cls == c) & (nc[sy, sx] > 0.02)
+        ml_px[sel] = mc[sy[sel], sx[sel]]
+    dw = ((lab - mw[sy, sx]) ** 2).sum(axis=1)
+    dl = ((lab - ml_px) ** 2).sum(axis=1)
+    is_w = dw < dl
+    cur_w = ids[ys, xs] == WATER
+    to_w = is_w & ~cur_w
+    to_l = ~is_w & cur_w
+    if open_water is not None:
+        # boats, piers and gaps filled as water stay water: only the open waterline is sharpened
+        filled = (water_small & ~open_water).astype(np.uint8)
+        to_l &= ~cv2.dilate(filled, k).astype(bool)[sy, sx]
+    ids[ys[to_w], xs[to_w]] = WATER
+    ids[ys[to_l], xs[to_l]] = land_ids[sy[to_l], sx[to_l]]
+    return ids
+
+
+class ClassicalSegmenter:
+    """Colour/texture rules + a per-image classifier trained on its confident pixels (self-training)."""
+
+    def __init__(self, config: SegmentConfig | None = None, **options):
+        if options:
+            raise InputError(
+                f"the classical segmenter takes no options, got {', '.join(sorted(options))}; "
+                "tune it with --set segment.KEY=VALUE instead"
+            )
+        self.config = config or SegmentConfig()
+
+    def work_scale(self, width: int, height: int, gsd_m: float) -> float:
+        cfg = self.config
+        s = min(1.0, gsd_m / max(gsd_m, cfg.work_gsd_m))
+        n = width * height * s * s
+        if n > cfg.max_work_px:
+            s *= math.sqrt(cfg.max_work_px / n)
+        return s
+
+    def segment_small(self, rgb: np.ndarray, gsd_m: float, seed: int):
+        """Class ids, water mask, features and open-water mask at the resolution of ``rgb`` (the
+        working resolution)."""
+        cfg = self.config
+        F = compute_features(rgb, gsd_m)
+        water, open_water = detect_water(F, cfg, return_open=True)
+        seeds = land_seeds(F, water, cfg.rocks_shore_m)
+        h, w = water.shape
+        land = ~water
+        ids = np.full((h, w), WATER, np.uint8)
+        present = [c for c in LAND if (seeds == c).sum() >= 20]
+        if land.any():
+            if not present:
+                # Nothing recognisable on land: call it dirt rather than guess a specific surface.
+                ids[land] = DIRT
+            elif len(present) == 1 or not cfg.self_training:
+                ids[land] = self._rule_fill(seeds, land, present)
+            else:
+                X = F.stack()
+                m = seeds.ravel() >= 0
+                classes, proba = _train_predict(X[m], seeds.ravel()[m], X[land.ravel()],
+                                                stage_seed(seed, "segment", "classical"))
+                full = np.zeros((h * w, N_CLASSES), np.float32)
+                full[np.ix_(land.ravel(), classes)] = proba
+                full = full.reshape(h, w, N_CLASSES)
+                k = 2 * max(0, int(cfg.smooth_px)) + 1
+                if k > 1:
+                    full = cv2.blur(full, (k, k))  # majority filter on probabilities
+                if water.any() and cfg.rocks_shore_m > 0:
+                    # Rocks in a coastal scene are revetments and breakwaters along the water; inland,
+                    # the same texture is usually rows of parked cars or gravel roofs.
+                    d = ndi.distance_transform_edt(~water) * gsd_m
+                    full[..., ROCKS] *= np.where(d <= cfg.rocks_shore_m, 1.0, 0.05).astype(np.float32)
+                # canopies are textured: a smooth dark lawn (shade, wet or lush grass) is not a tree
+                # ... nor is the edge between a light and a dark patch of lawn (coherent gradients)
+                notree = (F.tex2 < 7.5) | (F.tex1 < 3.0) | (F.coh > 0.6)
+                full[..., TREES] *= np.where(notree, 0.05, 1.0).astype(np.float32)
+                ids[land] = full.argmax(axis=2).astype(np.uint8)[land]
+                ids = _absorb_into_asphalt(ids, gsd_m, cfg.vehicle_area_max_m2)
+        min_px = int(round(cfg.min_region_m2 / (gsd_m * gsd_m)))
+        ids = _merge_small(ids, min_px, fixed=water)
+        ids[water] = WATER
+        ids[(ids == WATER) & ~water] = ASPHALT  # land that bordered nothing but water
+        return ids, water, F, open_water
+
+    @staticmethod
+    def _rule_fill(seeds: np.ndarray, land: np.ndarray, present: list[int]) -> np.ndarray:
+        known = seeds >= 0
+        if not known.any():
+            return np.full(int(land.sum()), present[0], np.uint8)
+        _d, (ri, ci) = ndi.distance_transform_edt(~known, return_indices=True)
+        return seeds[ri, ci].astype(np.uint8)[land]
+
+    def segment(self, image: GeoImage, seed: int = 0) -> ClassMap:
+        rgb = image.rgb
+        if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+            raise InputError(f"classical segmentation needs an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
+        H, W = rgb.shape[:2]
+        g = image.grid
+        s = self.work_scale(W, H, g.gsd_m)
+        if s < 0.999:
+            w, h = max(8, int(round(W * s))), max(8, int(round(H * s)))
+            small = cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA)
+        else:
+            w, h, small = W, H, rgb
+        gsd_w = g.gsd_m * W / w
+        ids, water, F, open_water = self.segment_small(small, gsd_w, seed)
+        if (w, h) != (W, H):
+            ids = refine_water_edge(rgb, ids, water, F, open_water=open_water)
+        return ClassMap(ids=np.ascontiguousarray(ids, dtype=np.uint8), grid=g)

@@ -1,0 +1,235 @@
+"""Remove transient objects (boats, vehicles) from the image by inpainting.
+
+Small holes (a car, a dinghy) are inpainted with OpenCV (Telea). Large ones (a yacht, a row of cars)
+would come out as smears, so they are filled from their surroundings' statistics instead: a smooth
+colour field interpolated from the ring of pixels around the hole (of the hole's surrounding class when
+a class map is given: water under boats), plus texture — residual detail (pixel minus local mean)
+copied from random places in that ring, so water keeps its ripples and asphalt its grain.
+
+Detections come from ``coastforge detect`` or a JSON file in its format::
+
+    {"gsd_m": 0.2, "image_size": [W, H],
+     "detections": [{"category": "boat", "corners_px": [[c, r], [c, r], [c, r], [c, r]], "score": 0.9}, ...]}
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from .. import frames
+from ..errors import InputError
+from ..rng import stage_rng
+from ..types import ClassMap, Detection, GeoImage
+
+TRANSIENT = ("boat", "vehicle", "buoy")  # objects that move or are placed as assets; piers stay
+
+
+def detection_from_corners(category: str, corners, score: float = 1.0) -> Detection:
+    """An oriented box from its 4 corners (col, row): centre, long side = length, yaw along it."""
+    c = np.asarray(corners, dtype=np.float64)
+    if c.shape != (4, 2) or not np.isfinite(c).all():
+        raise InputError(f"a {category} detection needs 4 finite [col, row] corners, got {corners!r}")
+    cx, cy = c.mean(axis=0)
+    e1, e2 = c[1] - c[0], c[2] - c[1]
+    l1, l2 = float(np.hypot(*e1)), float(np.hypot(*e2))
+    long_e = e1 if l1 >= l2 else e2
+    yaw = float(frames.yaw_from_direction_px(long_e[0], long_e[1]))
+    return Detection(category=category, score=float(score), cx_px=float(cx), cy_px=float(cy),
+                     length_px=max(l1, l2), width_px=min(l1, l2), yaw_deg=yaw)
+
+
+def load_detections(path: str | Path, image_size: tuple[int, int] | None = None) -> list[Detection]:
+    """Read a detections JSON (``coastforge detect`` format). Boxes are rescaled when the file's
+    ``image_size`` differs from ``image_size`` (W, H) of the image being cleaned."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"detections file {p} does not exist; pass the JSON written by `coastforge detect`")
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise InputError(f"detections file {p} is not valid JSON: {exc}") from exc
+    items = data.get("detections") if isinstance(data, dict) else data
+    if not isinstance(items, list):
+        raise InputError(f"detections file {p} needs a \"detections\" list")
+    sx = sy = 1.0
+    if image_size is not None and isinstance(data, dict) and data.get("image_size"):
+        fw, fh = (float(v) for v in data["image_size"])
+        W, H = image_size
+        if fw <= 0 or fh <= 0:
+            raise InputError(f"detections file {p} has an invalid image_size {data['image_size']}")
+        sx, sy = W / fw, H / fh
+        if abs(sx - sy) > 0.02 * max(sx, sy):
+            raise InputError(f"detections file {p} is for a {fw:g}x{fh:g} image, which does not match the "
+                             f"{W}x{H} image (different aspect ratio)")
+    out = []
+    for i, d in enumerate(items):
+        if not isinstance(d, dict) or "category" not in d or "corners_px" not in d:
+            raise InputError(f"detection {i} in {p} needs \"category\" and \"corners_px\"")
+        corners = np.asarray(d["corners_px"], dtype=np.float64) * [sx, sy]
+        out.append(detection_from_corners(str(d["category"]), corners, float(d.get("score", 1.0))))
+    return out
+
+
+def transient_mask(shape: tuple[int, int], detections: Sequence[Detection], categories=TRANSIENT,
+                   margin_px: float = 0.0) -> np.ndarray:
+    """Bool mask of the objects to remove: their masks if given, else their oriented boxes, grown by
+    ``margin_px`` (shadows and anti-aliased edges)."""
+    H, W = shape
+    mask = np.zeros((H, W), np.uint8)
+    for d in detections:
+        if d.category not in categories:
+            continue
+        if d.mask is not None and d.mask_origin_px is not None:
+            m = np.asarray(d.mask, bool)
+            c0, r0 = d.mask_origin_px
+            r1, c1 = min(H, r0 + m.shape[0]), min(W, c0 + m.shape[1])
+            rr0, cc0 = max(0, r0), max(0, c0)
+            if r1 > rr0 and c1 > cc0:
+                mask[rr0:r1, cc0:c1] |= m[rr0 - r0:r1 - r0, cc0 - c0:c1 - c0].astype(np.uint8)
+        else:
+            pts = frames.box_corners_px(d.cx_px, d.cy_px, d.length_px, d.width_px, d.yaw_deg)
+            cv2.fillPoly(mask, [np.round(pts).astype(np.int32)], 1)
+    if margin_px >= 0.5 and mask.any():
+        r = int(round(margin_px))
+        mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    return mask.astype(bool)
+
+
+def _typical(img: np.ndarray, ring: np.ndarray, k: float = 3.0) -> np.ndarray:
+    """The ring pixels whose colour is typical of the ring (robust z-score below ``k``): keeps water
+    and drops neighbouring boats, pier decks and their shadows from the fill statistics."""
+    px = img[ring].astype(np.float32)
+    if px.shape[0] < 10:
+        return ring
+    med = np.median(px, axis=0)
+    mad = np.median(np.abs(px - med), axis=0) * 1.4826 + 2.0
+    z = np.abs(px - med) / mad
+    keep = (z < k).all(axis=1)
+    if keep.sum() < max(10, 0.2 * px.shape[0]):
+        return ring
+    out = np.zeros_like(ring)
+    ys, xs = np.nonzero(ring)
+    out[ys[keep], xs[keep]] = True
+    return out
+
+
+def _texture_fill(img: np.ndarray, hole: np.ndarray, ring: np.ndarray, rng: np.random.Generator,
+                  gsd_m: float) -> None:
+    """Fill ``hole`` (in place) with a smooth field from ``ring`` plus ring texture."""
+    f = img.astype(np.float32)
+    valid = ring.astype(np.float32)
+    # smooth base: normalised convolution at growing scales until every hole pixel is reached
+    base = np.zeros_like(f)
+    done = np.zeros(hole.shape, bool)
+    k = max(3, int(round(2.0 / gsd_m)) | 1)
+    while not done[hole].all() and k < 4 * max(hole.shape):
+        num = cv2.blur(f * valid[..., None], (k, k))
+        den = cv2.blur(valid, (k, k))
+        ok = (den > 1e-3) & ~done
+        base[ok] = num[ok] / den[ok][:, None]
+        done |= ok
+        k = k * 2 + 1
+    # texture: residuals of the ring (pixel - local mean), copied from random ring pixels in small
+    # blocks so the grain keeps its spatial correlation
+    local = cv2.blur(f, (5, 5))
+    resid = f - local
+    ry, rx = np.nonzero(ring)
+    hy, hx = np.nonzero(hole)
+    if ry.size:
+        b = 4  # block size in pixels
+        by, bx = hy // b, hx // b
+        keys = by.astype(np.int64) * 100_003 + bx
+        uk, inv = np.unique(keys, return_inverse=True)
+        pick = rng.integers(0, ry.size, uk.size)
+        oy = ry[pick][inv] + (hy % b) - b // 2
+        ox = rx[pick][inv] + (hx % b) - b // 2
+        oy = np.clip(oy, 0, f.shape[0] - 1)
+        ox = np.clip(ox, 0, f.shape[1] - 1)
+        tex = resid[oy, ox]
+    else:
+        tex = 0.0
+    img[hy, hx] = np.clip(base[hy, hx] + tex + 0.5, 0, 255).astype(np.uint8)
+
+
+def clean_image(image: GeoImage, detections: Sequence[Detection], class_map: ClassMap | None = None,
+                seed: int = 0, categories: Sequence[str] = TRANSIENT, margin_m: float = 0.6,
+                small_m2: float = 12.0) -> np.ndarray:
+    """The image with transient objects removed (uint8 RGB, same size).
+
+    Holes up to ``small_m2`` use OpenCV Telea inpainting; larger ones a texture-aware fill from the
+    surrounding pixels of the hole's surrounding class (``class_map``) or of all surroundings."""
+    rgb = image.rgb
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise InputError(f"cleaning needs an RGB image, got shape {rgb.shape}")
+    H, W = rgb.shape[:2]
+    gsd = image.grid.gsd_m
+    mask = transient_mask((H, W), detections, tuple(categories), margin_m / gsd)
+    out = rgb.copy()
+    if not mask.any():
+        return out
+    ids = None
+    if class_map is not None:
+        ids = class_map.ids
+        if ids.shape != (H, W):
+            ids = cv2.resize(ids, (W, H), interpolation=cv2.INTER_NEAREST)
+    rng = stage_rng(seed, "clean")
+    n, lab, stats, _c = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    ring_px = max(3, int(round(3.0 / gsd)))
+    small_px = small_m2 / (gsd * gsd)
+    for i in range(1, n):
+        x, y, w, h, area = stats[i]
+        if area <= small_px:
+            continue  # inpainted below, all small holes in one pass
+        pad = ring_px * 4
+        x0, y0 = max(0, x - pad), max(0, y - pad)
+        x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
+        hole = lab[y0:y1, x0:x1] == i
+        k = np.ones((2 * ring_px + 1, 2 * ring_px + 1), np.uint8)
+        ring = cv2.dilate(hole.astype(np.uint8), k).astype(bool) & ~mask[y0:y1, x0:x1]
+        if ids is not None and ring.any():
+            cls = np.bincount(ids[y0:y1, x0:x1][ring], minlength=8).argmax()
+            same = ring & (ids[y0:y1, x0:x1] == cls)
+            if same.sum() >= 0.2 * ring.sum():
+                ring = same
+        if not ring.any():
+            ring = ~mask[y0:y1, x0:x1]
+        if not ring.any():
+            continue
+        sub = out[y0:y1, x0:x1]
+        ring = _typical(sub, ring)
+        _texture_fill(sub, hole, ring, rng, gsd)
+    small = (stats[lab, cv2.CC_STAT_AREA] <= small_px) & (lab > 0)
+    if small.any():
+        telea = small.astype(np.uint8)
+        radius = max(3.0, 1.0 / gsd)
+        bgr = np.ascontiguousarray(out[:, :, ::-1])
+        filled = cv2.inpaint(bgr, telea, radius, cv2.INPAINT_TELEA)[:, :, ::-1]
+        out[small] = filled[small]
+    return out
+
+
+def clean_file(image_path: str | Path, detections_path: str | Path, out_path: str | Path, *,
+               gsd_m: float | None = None, size_m: tuple[float, float] | None = None, config=None,
+               overwrite: bool = False, classes_path: str | Path | None = None) -> Path:
+    """Read an image and a detections JSON, remove boats and vehicles, write the cleaned PNG."""
+    from ..config import Config
+    from ..fsio import check_writable_file, read_png, write_png
+    from ..io import read_image
+
+    cfg = config or Config()
+    out = check_writable_file(out_path, overwrite)
+    image = read_image(image_path, gsd_m=gsd_m, size_m=size_m, config=cfg.io)
+    dets = load_detections(detections_path, (image.grid.width_px, image.grid.height_px))
+    cm = None
+    if classes_path is not None:
+        ids = read_png(classes_path)
+        if ids.ndim != 2:
+            raise InputError(f"class map {classes_path} must be a single-band PNG of class ids (classes.png)")
+        cm = ClassMap(ids=ids.astype(np.uint8), grid=image.grid)
+    cleaned = clean_image(image, dets, cm, seed=cfg.seed)
+    return write_png(out, cleaned)
