@@ -277,20 +277,3 @@ def test_library_assets_fill_the_layout_roles(monkeypatch, tmp_path):
     assert by_cat["vehicle"] == {"lib_sedan"}
     assert by_cat["pier"] <= {"pier_walkway", "pier_finger"}  # roles the library cannot fill keep the kit
     assert truth.provenance["library"] == str(tmp_path)
-
-
-def test_demo_reruns_into_its_own_folder_only(tmp_path, capsys):
-    from coastforge import demo
-
-    out = tmp_path / "demo"
-    (out / "truth.json").parent.mkdir()
-    for name in ("truth.json", "inputs.json"):  # a previous demo's output is replaced
-        (out / name).write_text("{}")
-    assert demo.main(["--out", str(out), "--gsd", "1.0"]) == 0
-    assert "image_1.00m.png" in capsys.readouterr().out
-    assert json.loads((out / "inputs.json").read_text())["images"][0]["gsd_m"] == 1.0
-    other = tmp_path / "other"
-    other.mkdir()
-    (other / "notes.txt").write_text("mine")
-    assert demo.main(["--out", str(other), "--gsd", "1.0"]) == 2
-    assert (other / "notes.txt").read_text() == "mine"

@@ -29,7 +29,14 @@ function show(container, glbBase64, options = {}) {
   scene.add(sun);
   const camera = new THREE.PerspectiveCamera(45, width / height, 0.1, 100000);
   const controls = new OrbitControls(camera, renderer.domElement);
-  controls.enableDamping = true;
+  // software WebGL (SwiftShader, llvmpipe: no GPU) draws a frame slowly: no inertia there, so a drag costs
+  // one frame per mouse move instead of a long damped animation
+  const gl = renderer.getContext();
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  const gpu = String((info && gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) || gl.getParameter(gl.RENDERER) || "");
+  const software = /swiftshader|llvmpipe|softpipe|software/i.test(gpu);
+  container.dataset.renderer = gpu;
+  controls.enableDamping = !software;
   controls.screenSpacePanning = false;
   let dirty = true;
   controls.addEventListener("change", () => { dirty = true; });
@@ -46,9 +53,9 @@ function show(container, glbBase64, options = {}) {
       camera.far = radius * 20;
       controls.maxDistance = radius * 6;
       const views = {
-        top: [0.0001, radius * 1.9, 0.0001],
-        oblique: [radius * 0.15, radius * 1.05, radius * 1.05],
-        low: [radius * 0.2, radius * 0.18, radius * 1.25],
+        top: [0.0001, radius * 2.2, 0.0001],
+        oblique: [radius * 0.13, radius * 1.25, radius * 1.38],
+        low: [radius * 0.25, radius * 0.25, radius * 1.8],
       };
       const view = (name) => {
         const v = views[name] || views.oblique;
@@ -78,7 +85,7 @@ function show(container, glbBase64, options = {}) {
       renderer.render(scene, camera);
       container.dataset.drawn = "1";
       requestAnimationFrame(loop);
-      resolve({ renderer, scene, camera, controls, view });
+      resolve({ renderer, scene, camera, controls, view, software });
     }, (err) => { container.dataset.error = String(err); reject(err); });
   });
 }

@@ -165,7 +165,8 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
             counters[d.category] = k + 1
             objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
                                  water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
-                                 attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4)}))
+                                 attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4),
+                                        "match": dec.index}))
     with timer.stage("piers"):
         walk, finger = _pier_assets(library)
         pier_report: dict = {"n_structures": 0}

@@ -24,7 +24,8 @@ from .scene import Scene, SceneObject, load_scene
 
 MAX_PX = 1400  # big pictures are shown at most this wide: keeps a 100-object report far under 15 MB
 THUMB_PX = 96  # crop / asset thumbnails in the objects table
-SECTIONS = ("overview", "classes", "detections", "objects", "terrain", "piers", "vegetation", "metrics", "provenance",
+SECTIONS = ("overview", "classes", "detections", "objects", "terrain", "piers", "vegetation", "metrics",
+            "provenance",
             "preview3d")
 TITLES = {"overview": "Input and generated scene", "classes": "Terrain classes", "detections": "Detections",
           "objects": "Objects and their assets", "terrain": "Height map and shore profile",
@@ -33,8 +34,7 @@ TITLES = {"overview": "Input and generated scene", "classes": "Terrain classes",
           "preview3d": "3D preview"}
 DET_COLOURS = {"boat": (255, 90, 40), "vehicle": (255, 215, 0), "pier_walkway": (40, 200, 255),
                "pier_finger": (120, 255, 200), "buoy": (255, 0, 255)}
-SHORE_COLOURS = {"sand": "#d9a84e", "rocks": "#6b5e55", "wall": "#444444", "vegetation": "#3c8c3c",
-                 "grass": "#3c8c3c", "dirt": "#8c643c"}
+SHORE_COLOURS = {"beach": "#d99a1e", "revetment": "#8c5a3c", "quay": "#d62728", "bank": "#2ca02c"}
 
 
 # ----------------------------------------------------------------------------- small helpers
@@ -62,7 +62,7 @@ def _fit(rgb: np.ndarray, max_px: int = MAX_PX) -> np.ndarray:
 
 
 def _upscale_small(rgb: np.ndarray, min_px: int = 700) -> np.ndarray:
-    """Small images (tests, tiny scenes) upscaled with nearest pixels, so overlays drawn on them stay legible."""
+    """Small images (tests, tiny scenes) upscaled with nearest pixels: overlays drawn on them stay legible."""
     import cv2
 
     f = int(np.ceil(min_px / max(rgb.shape[:2])))
@@ -97,14 +97,15 @@ def _fig_uri(fig) -> str:
 
 
 def _img(uri: str, caption: str, cls: str = "") -> str:
-    return (f'<figure class="{cls}"><img src="{uri}" alt="{html.escape(caption)}" title="click to enlarge"/>'
+    return (f'<figure class="{cls}"><img decoding="async" src="{uri}" alt="{html.escape(caption)}" '
+            'title="click to enlarge"/>'
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
-def _table(header: list[str], rows: list[list], cls: str = "") -> str:
-    th = "".join(f"<th>{h}</th>" for h in header)
+def _table(header: list[str] | None, rows: list[list], cls: str = "") -> str:
+    th = "<thead><tr>" + "".join(f"<th>{h}</th>" for h in header) + "</tr></thead>" if header else ""
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
-    return f'<table class="{cls}"><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>'
+    return f'<table class="{cls}">{th}<tbody>{body}</tbody></table>'
 
 
 def _fmt(v, nd: int = 3) -> str:
@@ -142,6 +143,9 @@ def _input_image(scene: Scene, scene_dir: Path) -> tuple[np.ndarray | None, str]
     if src:
         p = Path(src)
         cands += [p] if p.is_absolute() else [p, scene_dir / p]
+    for im in scene.provenance.get("images") or []:  # a synth truth folder: its rendered images
+        if isinstance(im, dict) and im.get("path"):
+            cands.append(scene_dir / str(im["path"]))
     cands.append(scene_dir / "image.png")
     for c in cands:
         if c.is_file():
@@ -265,7 +269,8 @@ def _overview(image, top) -> str:
     if image is not None:
         row.append(_img(_data_uri(_fit(image)), "Input image"))
     if top is not None:
-        row.append(_img(_data_uri(_fit(top)), "Generated scene rendered from above (terrain, assets, vegetation)"))
+        row.append(_img(_data_uri(_fit(top)),
+                        "Generated scene rendered from above (terrain, assets, vegetation)"))
     if not row:
         return _note("Neither the input image nor a render is available.")
     return '<div class="pair">' + "".join(row) + "</div>"
@@ -288,7 +293,8 @@ def _classes_section(scene: Scene, base: np.ndarray | None, scene_dir: Path) -> 
         overlay = ('<figure><div class="stack"><img src="' + _data_uri(base) + '" alt="input image"/>'
                    '<img class="top" id="classmap-img" style="opacity:.55" src="' + _data_uri(cm, "png") +
                    '" alt="class map"/></div><figcaption>Terrain classes over the image — opacity '
-                   '<input type="range" id="classmap-opacity" min="0" max="100" value="55"/></figcaption></figure>')
+                   '<input type="range" id="classmap-opacity" min="0" max="100" value="55"/>'
+                   '</figcaption></figure>')
     else:
         overlay = _img(_data_uri(_fit(cm), "png"), "Terrain classes")
     figs = [overlay]
@@ -322,8 +328,9 @@ def _draw_detections(img: np.ndarray, dets: list[dict], scale: float, labels: di
                             cv2.LINE_AA, tipLength=0.3)
         if i in labels:
             org = (round(pts[:, 0].max()) + 2, round(pts[:, 1].min()) + 8)
-            cv2.putText(out, labels[i], org, cv2.FONT_HERSHEY_SIMPLEX, 0.38 * th, (0, 0, 0), th + 2, cv2.LINE_AA)
-            cv2.putText(out, labels[i], org, cv2.FONT_HERSHEY_SIMPLEX, 0.38 * th, (255, 255, 255), th, cv2.LINE_AA)
+            font = cv2.FONT_HERSHEY_SIMPLEX
+            cv2.putText(out, labels[i], org, font, 0.38 * th, (0, 0, 0), th + 2, cv2.LINE_AA)
+            cv2.putText(out, labels[i], org, font, 0.38 * th, (255, 255, 255), th, cv2.LINE_AA)
     return out
 
 
@@ -341,12 +348,15 @@ def _detections_section(base, dets, scale, labels) -> str:
         f'<span><i style="background:{_rgb_css(DET_COLOURS.get(k, (255, 255, 255)))}"></i>{html.escape(k)} '
         f"<small>{v}</small></span>" for k, v in sorted(cats.items())) + "</div>"
     return (legend + _note(f"{len(dets)} detections; heading known for {known} of {movable} boats/vehicles "
-                           "(coloured arrow: known heading, white arrow: heading from the asset or unresolved). "
+                           "(coloured arrow: known heading, white arrow: heading from the asset or "
+                           "unresolved). "
                            "Labels are the row numbers of the objects table.")
-            + _img(_data_uri(_draw_detections(base, dets, scale, labels)), "Detections with heading arrows", "wide"))
+            + _img(_data_uri(_draw_detections(base, dets, scale, labels)), "Detections with heading arrows",
+                   "wide"))
 
 
-def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict], dets: list[dict]) -> tuple[str, str]:
+def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict],
+                     dets: list[dict]) -> tuple[str, str]:
     """The objects table and the CSS holding each asset view once (rows refer to it by class)."""
     from .matching import crop_rotated
 
@@ -378,17 +388,20 @@ def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict
             side_px = max(o.length_m, o.width_m, 1.0) * 1.3 / img_gsd  # the asset views' framing
             crop = crop_rotated(image, float(col) * img_scale, float(row) * img_scale, o.yaw_deg, THUMB_PX,
                                 THUMB_PX, THUMB_PX / side_px)
-            crop_html = f'<img class="thumb" src="{_data_uri(crop, quality=80)}" alt="crop of {html.escape(o.id)}"/>'
+            crop_html = (f'<img class="thumb" decoding="async" src="{_data_uri(crop, quality=80)}" '
+                         f'alt="crop of {html.escape(o.id)}"/>')
         runners = []
         for c in (m or {}).get("candidates", [])[:4]:
             if c.get("asset_id") == o.asset_id:
                 continue
             runners.append(f'<div class="cand">{asset_thumb(c["asset_id"], bg, True)}'
-                           f'<span>{html.escape(str(c["asset_id"]))}<br/><small>{float(c.get("score", 0)):.3f}'
+                           f'<span>{html.escape(str(c["asset_id"]))}<br/>'
+                           f'<small>{float(c.get("score", 0)):.3f}'
                            f'</small></span></div>')
             if len(runners) == 3:
                 break
-        det = dets[m["index"]] if m and isinstance(m.get("index"), int) and 0 <= m["index"] < len(dets) else {}
+        ix = m.get("index") if m else None
+        det = dets[ix] if isinstance(ix, int) and 0 <= ix < len(dets) else {}
         heading = (m or {}).get("heading_source") or o.attrs.get("heading") or "—"
         rows.append([
             f'<b>{k + 1}</b>', f'{html.escape(o.id)}<br/><small>{html.escape(o.category)}</small>',
@@ -396,10 +409,12 @@ def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict
             _fmt(float(m["score"]) if m and "score" in m else o.score, 3),
             _fmt(det.get("score", o.attrs.get("detector_score")), 2),
             f"{o.length_m:.1f} × {o.width_m:.1f}", f"{o.yaw_deg:.0f}°", html.escape(str(heading)),
-            '<div class="cands">' + "".join(runners) + "</div>" if runners else '<span class="muted">—</span>',
+            ('<div class="cands">' + "".join(runners) + "</div>") if runners
+            else '<span class="muted">—</span>',
         ])
     linked = sum(1 for o in objs if o.id in links)
-    head = ["#", "object", "image crop", "chosen asset", "asset id", "match score", "det. score", "size L × W (m)",
+    head = ["#", "object", "image crop", "chosen asset", "asset id", "match score", "det. score",
+            "size L × W (m)",
             "yaw", "heading from", "runner-up candidates (score)"]
     note = _note(f"{len(objs)} objects; {linked} linked to their matching decision. Crops are rotated so the "
                  "detected bow/front points right, like the asset views (seen from above at yaw 0).")
@@ -422,7 +437,8 @@ def _load_sections(scene_dir: Path) -> list[dict]:
         return []
     try:
         secs = json.loads(p.read_text()).get("sections", [])
-        return [s for s in secs if len(s.get("distance_m", [])) >= 2 and len(s["distance_m"]) == len(s["height_m"])]
+        return [s for s in secs
+                if len(s.get("distance_m", [])) >= 2 and len(s["distance_m"]) == len(s["height_m"])]
     except (ValueError, AttributeError, KeyError, TypeError):
         return []
 
@@ -455,10 +471,12 @@ def _terrain_section(scene: Scene, scene_dir: Path) -> str:
         x0, y0 = grid.to_scene(c0, r0)
         x1, y1 = grid.to_scene(c1, r1)
         col = SHORE_COLOURS.get(s["shore_type"], "#d62728")
-        ax.annotate("", xy=(x1, y1), xytext=(x0, y0), arrowprops=dict(arrowstyle="->", color=col, lw=2.2))
-        ax.plot([x0], [y0], "o", color=col, ms=5, mec="white")
-        ax.text(x0, y0, f" {s['shore_type']}", color="white", fontsize=9, fontweight="bold",
-                bbox=dict(facecolor=col, alpha=0.8, pad=1.5, lw=0))
+        ax.annotate("", xy=(x1, y1), xytext=(x0, y0), arrowprops=dict(arrowstyle="-|>", color=col, lw=2.2))
+        ax.plot([x0], [y0], "o", color=col, ms=6, mec="white")
+        # label a quarter of the way along: inside the map, off the shoreline
+        ax.text(x0 + 0.25 * (x1 - x0), y0 + 0.25 * (y1 - y0), s["shore_type"], color="white", fontsize=9,
+                fontweight="bold", ha="center", va="center",
+                bbox=dict(facecolor=col, alpha=0.85, pad=1.5, lw=0))
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
     ax.set_title(f"Height map (hillshade): {float(z.min()):.1f} m to {float(z.max()):.1f} m")
@@ -472,7 +490,6 @@ def _terrain_section(scene: Scene, scene_dir: Path) -> str:
             d, hh = np.asarray(s["distance_m"], float), np.asarray(s["height_m"], float)
             col = SHORE_COLOURS.get(s["shore_type"], None)
             ax.plot(d, hh, color=col, lw=2, label=f"{s['shore_type']} shore")
-            ax.fill_between(d, hh, min(lo, 0) - 0.5, color=col or "#888", alpha=0.12)
         ax.fill_between([dmin, dmx], [0, 0], min(lo, 0) - 0.5, color="#9ecae1", alpha=0.35, zorder=0,
                         label="water")
         ax.axvline(0, color="#555", lw=0.8, ls=":")
@@ -498,7 +515,8 @@ def _terrain_section(scene: Scene, scene_dir: Path) -> str:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     sec = _fig_uri(fig)
-    return '<div class="pair">' + _img(hill, "Height map with land and bathymetry") + _img(sec, cap) + "</div>"
+    return ('<div class="pair">' + _img(hill, "Height map with land and bathymetry") + _img(sec, cap)
+            + "</div>")
 
 
 def _pier_graph(piers: list[SceneObject], tol_m: float = 0.5):
@@ -512,7 +530,8 @@ def _pier_graph(piers: list[SceneObject], tol_m: float = 0.5):
         c = np.array([o.x_m, o.y_m])
         polys.append(np.array([c + f + lft, c - f + lft, c - f - lft, c + f - lft]))
     shp = [Polygon(p) for p in polys]
-    edges = [(i, j) for i in range(len(shp)) for j in range(i + 1, len(shp)) if shp[i].distance(shp[j]) <= tol_m]
+    n = len(shp)
+    edges = [(i, j) for i in range(n) for j in range(i + 1, n) if shp[i].distance(shp[j]) <= tol_m]
     return polys, edges
 
 
@@ -554,7 +573,8 @@ def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
     c1, r1 = min(img.shape[1], int(np.ceil(c1 * s))), min(img.shape[0], int(np.ceil(r1 * s)))
     crop = img[r0:r1, c0:c1]
     k = max(1.0, 1000 / max(crop.shape[:2]))
-    crop = cv2.resize(crop, (round(crop.shape[1] * k), round(crop.shape[0] * k)), interpolation=cv2.INTER_CUBIC)
+    crop = cv2.resize(crop, (round(crop.shape[1] * k), round(crop.shape[0] * k)),
+                      interpolation=cv2.INTER_CUBIC)
     canvas = (crop * 0.6 + 100).astype(np.uint8)  # faded so the overlay reads
 
     def px(xy):
@@ -570,7 +590,8 @@ def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
     canvas = cv2.addWeighted(fill, 0.75, canvas, 0.25, 0)
     for i, (o, p) in enumerate(zip(piers, polys)):
         pts = np.round(px(p)).astype(np.int32)
-        cv2.polylines(canvas, [pts], True, (220, 30, 30) if o.id in bad else (20, 20, 20), 3 if o.id in bad else 1,
+        cv2.polylines(canvas, [pts], True, (220, 30, 30) if o.id in bad else (20, 20, 20),
+                      3 if o.id in bad else 1,
                       cv2.LINE_AA)
     centres = px(np.array([[o.x_m, o.y_m] for o in piers]))
     for i, j in edges:
@@ -634,8 +655,9 @@ def _vegetation_section(scene: Scene) -> str:
                      f"{area[c]:,.0f}", str(n), f"{d:.2f}", per or '<span class="muted">—</span>'])
     top = max(dens.values()) or 1.0
     bars = "".join(
-        f'<div class="bar"><span class="lab">{CLASS_NAMES[c]}</span><span class="b" style="width:{100 * d / top:.1f}%;'
-        f'background:{_rgb_css(PALETTE[c])}"></span><span class="val">{d:.2f}</span></div>'
+        f'<div class="bar"><span class="lab">{CLASS_NAMES[c]}</span><span class="track">'
+        f'<span class="b" style="width:{100 * d / top:.1f}%;'
+        f'background:{_rgb_css(PALETTE[c])}"></span></span><span class="val">{d:.2f}</span></div>'
         for c, d in dens.items())
     # instances over the (faded) class map, coloured by category
     base = _upscale_small(_fit(colorize(scene.classes), 900))
@@ -649,10 +671,13 @@ def _vegetation_section(scene: Scene) -> str:
     legend = '<div class="legend">' + "".join(
         f'<span><i style="background:{_rgb_css(ccols[k % len(ccols)])}"></i>{html.escape(a)} '
         f"<small>{int(np.sum(v.category == a))}</small></span>" for k, a in enumerate(cats)) + "</div>"
-    return ('<div class="pair"><div>' + _note(f"{len(v)} instances; density in instances per 100 m² of each class.")
+    return ('<div class="pair"><div>'
+            + _note(f"{len(v)} instances; density in instances per 100 m² of each class.")
             + f'<div class="bars">{bars}</div>'
             + _table(["class", "area (m²)", "instances", "per 100 m²", "by category"], rows) + "</div>"
-            + "<div>" + legend + _img(_data_uri(pic), "Vegetation and rock instances over the class map") + "</div></div>")
+            + "<div>" + legend
+            + _img(_data_uri(pic), "Vegetation and rock instances over the class map", "narrow")
+            + "</div></div>")
 
 
 METRIC_LABELS = {"n_truth": "truth objects", "n_pred": "predicted objects", "n_matched": "matched",
@@ -664,7 +689,8 @@ METRIC_LABELS = {"n_truth": "truth objects", "n_pred": "predicted objects", "n_m
 
 def _metrics_section(scene: Scene, truth_path: str | None) -> str:
     if not truth_path:
-        return _note("No truth scene given: run <code>coastforge report DIR --truth truth.json</code> to compare.")
+        return _note("No truth scene given: run <code>coastforge report DIR --truth truth.json</code> "
+                     "to compare.")
     from .evaluate import evaluate_scenes
 
     m = evaluate_scenes(load_scene(truth_path), scene)
@@ -672,8 +698,15 @@ def _metrics_section(scene: Scene, truth_path: str | None) -> str:
     rows = [[METRIC_LABELS.get(k, k), _fmt(m.get(k))] + [_fmt(m["per_category"][c].get(k)) for c in cats]
             for k in METRIC_LABELS if k in m]
     t = m.get("terrain") or {}
-    trows = [[html.escape(k), _fmt(v) if not isinstance(v, (dict, list)) else html.escape(json.dumps(v))]
-             for k, v in t.items()]
+    trows = []
+    for k, v in t.items():
+        if isinstance(v, dict):  # e.g. per-class IoU: one line per class
+            sw = lambda c: _rgb_css(PALETTE[CLASS_NAMES.index(c)])  # noqa: E731
+            trows += [[f'{html.escape(k)}: <i class="sw" style="background:{sw(c)}"></i>{html.escape(c)}'
+                       if c in CLASS_NAMES else f"{html.escape(k)}: {html.escape(str(c))}",
+                       _fmt(x)] for c, x in v.items()]
+        else:
+            trows.append([html.escape(k), _fmt(v) if not isinstance(v, list) else html.escape(json.dumps(v))])
     p = m.get("piers") or {}
     prow = [[html.escape(k), _fmt(v) if not isinstance(v, list) else str(len(v))] for k, v in p.items()]
     return (_note(f"Against <code>{html.escape(str(truth_path))}</code>.") + '<div class="pair">'
@@ -691,11 +724,13 @@ def _versions(scene: Scene) -> list[list[str]]:
     p = scene.provenance
     three = ""
     try:
-        lic = resources.files("coastforge.report_assets").joinpath("THREE_LICENSE.txt").read_text(encoding="utf-8")
+        lic = resources.files("coastforge.report_assets").joinpath("THREE_LICENSE.txt")
+        lic = lic.read_text(encoding="utf-8")
         three = lic.split("—")[0].strip()
     except (OSError, FileNotFoundError):
         pass
-    return [["scene made by", _fmt(p.get("version") or p.get("tool"))], ["report made by", f"coastforge {__version__}"],
+    return [["scene made by", _fmt(p.get("version") or p.get("tool"))],
+            ["report made by", f"coastforge {__version__}"],
             ["python (scene / report)", f"{_fmt(p.get('python'))} / {platform.python_version()}"],
             ["numpy", np.__version__], ["3D viewer", html.escape(three or "three.js")],
             ["platform", _fmt(p.get("platform") or sys.platform)]]
@@ -705,27 +740,32 @@ def _provenance_section(scene: Scene, report_s: float) -> str:
     p = scene.provenance
     t = {k: float(v) for k, v in (p.get("timings_s") or {}).items() if isinstance(v, (int, float))}
     total = t.pop("total", None)
-    t["report"] = report_s
     top = max(t.values()) if t else 1.0
-    bars = "".join(f'<div class="bar"><span class="lab">{html.escape(k)}</span><span class="b" style="width:'
-                   f'{100 * v / top if top else 0:.1f}%"></span><span class="val">{v:.2f} s</span></div>'
+    bars = "".join(f'<div class="bar"><span class="lab">{html.escape(k)}</span><span class="track">'
+                   f'<span class="b" style="width:'
+                   f'{100 * v / top if top else 0:.1f}%"></span></span><span class="val">{v:.2f} s</span>'
+                   '</div>'
                    for k, v in t.items())
     total_s = f"{total:.2f} s" if total is not None else f"{sum(t.values()) - report_s:.2f} s"
-    info = [["command", f"<code>{html.escape(str(p.get('command') or '—'))}</code>"], ["seed", _fmt(scene.seed)],
+    info = [["command", f"<code>{html.escape(str(p.get('command') or '—'))}</code>"],
+            ["seed", _fmt(scene.seed)],
             ["input", _fmt((p.get("input") or {}).get("image"))], ["library", _fmt(p.get("library"))],
-            ["backends", html.escape(", ".join(f"{k}: {v}" for k, v in (p.get("backends") or {}).items()) or "—")],
+            ["backends", html.escape(", ".join(f"{k}: {v}" for k, v in (p.get("backends") or {}).items())
+                                     or "—")],
             *_versions(scene)]
     cfg = p.get("config")
-    cfg_html = (f'<details><summary>configuration</summary><pre>{html.escape(json.dumps(cfg, indent=1))}</pre>'
+    cfg_html = (f'<details><summary>configuration</summary>'
+                f'<pre>{html.escape(json.dumps(cfg, indent=1))}</pre>'
                 "</details>") if cfg else ""
     return ('<div class="pair"><div><h3>Stage timings</h3>'
             + (f'<div class="bars timings">{bars}</div>' if bars else _note("No timings recorded."))
-            + _note(f"pipeline total {total_s} (report {report_s:.2f} s; wall clock on the machine that ran it)")
-            + "</div><div><h3>Run</h3>" + _table(["", ""], info, "prov") + cfg_html + "</div></div>")
+            + _note(f"pipeline total {total_s}; this report took {report_s:.2f} s (wall clock on the machine "
+                    "that ran it)")
+            + "</div><div><h3>Run</h3>" + _table(None, info, "prov") + cfg_html + "</div></div>")
 
 
-PREVIEW_MAX_BYTES = 6_000_000  # an exported GLB bigger than this is replaced by a lighter preview build
-PREVIEW_VERTICES = 60_000
+PREVIEW_MAX_BYTES = 4_500_000  # an exported GLB bigger than this is replaced by a lighter preview build
+PREVIEW_VERTICES = 30_000
 PREVIEW_TEXTURE_PX = 1024
 
 
@@ -754,52 +794,50 @@ def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets) -> tuple[bytes | 
 
 CSS = """
 *{box-sizing:border-box}
-body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;background:#eef2f5;color:#1d2733;
-font-size:14px;line-height:1.4}
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;background:#eef2f5;
+color:#1d2733;font-size:14px;line-height:1.4}
 header{background:linear-gradient(90deg,#0b3954,#087e8b);color:#fff;padding:16px 28px}
 header h1{margin:0;font-size:22px;font-weight:600}header p{margin:6px 0 0;opacity:.9}
-.chips span{display:inline-block;background:rgba(255,255,255,.16);border-radius:12px;padding:2px 10px;margin:6px 6px 0 0;
-font-size:13px}
-nav{position:sticky;top:0;z-index:5;padding:8px 28px;background:#dfe8ef;font-size:13px;border-bottom:1px solid #c9d6e0}
-nav a{margin-right:14px;color:#0b3954;text-decoration:none;white-space:nowrap}nav a:hover{text-decoration:underline}
-section{background:#fff;margin:16px 28px;padding:14px 20px 18px;border-radius:8px;box-shadow:0 1px 3px rgba(0,0,0,.1);
-scroll-margin-top:44px}
+.chips span{display:inline-block;background:rgba(255,255,255,.16);border-radius:12px;padding:2px 10px;
+margin:6px 6px 0 0;font-size:13px}
+nav{position:sticky;top:0;z-index:5;padding:8px 28px;background:#dfe8ef;font-size:13px;
+border-bottom:1px solid #c9d6e0;display:flex;flex-wrap:wrap;gap:4px 16px}
+nav a{color:#0b3954;text-decoration:none;white-space:nowrap}nav a:hover{text-decoration:underline}
+section{background:#fff;margin:16px 28px;padding:14px 20px 18px;border-radius:8px;
+box-shadow:0 1px 3px rgba(0,0,0,.1);scroll-margin-top:44px}
 h2{margin:2px 0 10px;font-size:18px;color:#0b3954}h3{font-size:15px;margin:6px 0;color:#234}
 .pair{display:grid;grid-template-columns:repeat(auto-fit,minmax(440px,1fr));gap:16px;align-items:start}
-figure{margin:0}figure img{width:100%;height:auto;border:1px solid #ccd5dd;border-radius:4px;cursor:zoom-in;
-display:block;background:#fff}figure.wide img{max-width:1100px}
-figcaption{font-size:13px;color:#4a5866;margin-top:4px}
+.pair>*{min-width:0}figure.narrow img{max-width:440px}figure{margin:0}
+figure img{width:100%;height:auto;border:1px solid #ccd5dd;border-radius:4px;cursor:zoom-in;display:block;
+background:#fff}figure.wide img{max-width:1100px}figcaption{font-size:13px;color:#4a5866;margin-top:4px}
 .stack{position:relative}.stack img.top{position:absolute;left:0;top:0;image-rendering:pixelated}
-.stack img:first-child{cursor:default}
-table{border-collapse:collapse;font-size:13px;margin:6px 0}td,th{border:1px solid #dbe2e8;padding:4px 8px;
-text-align:left;vertical-align:middle}th{background:#eef3f7;position:sticky;top:0;z-index:1}
-tbody tr:nth-child(even){background:#f8fafc}
+.stack img:first-child{cursor:default}table{border-collapse:collapse;font-size:13px;margin:6px 0}
+td,th{border:1px solid #dbe2e8;padding:4px 8px;text-align:left;vertical-align:middle}
+th{background:#eef3f7;position:sticky;top:0;z-index:1}tbody tr:nth-child(even){background:#f8fafc}
 table.objects td{white-space:nowrap}
 .scroll{max-height:720px;overflow:auto;border:1px solid #e3e9ee;border-radius:4px}
 img.thumb,.av{width:96px;height:96px;border-radius:3px;display:inline-block;vertical-align:middle;
-background-size:cover;border:1px solid #ccd}
-.av.small{width:44px;height:44px}
-.cands{display:flex;gap:8px}.cand{display:flex;gap:4px;align-items:center;font-size:12px}
+background-size:cover;border:1px solid #ccd}.av.small{width:44px;height:44px}.cands{display:flex;gap:8px}
+.cand{display:flex;gap:4px;align-items:center;font-size:12px}
 .legend span{display:inline-block;margin:2px 14px 4px 0;font-size:13px}
 .legend i,.sw{display:inline-block;width:14px;height:14px;margin-right:5px;vertical-align:-2px;
-border:1px solid #777;border-radius:2px}
-small,.muted,.note{color:#5b6875}.note{margin:4px 0 10px}
-.ok{color:#1a7f37}.bad{color:#c62828}
-.bars{margin:6px 0 10px;max-width:620px}.bar{display:flex;align-items:center;gap:8px;margin:3px 0}
-.bar .lab{width:110px;font-size:13px;text-align:right}.bar .b{height:14px;background:#087e8b;border-radius:2px;
-min-width:2px}.bar .val{font-size:12px;color:#445;white-space:nowrap}
-.timings .b{background:#0b3954}
-code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px}code{background:#f1f4f7;padding:1px 4px;
-border-radius:3px;white-space:pre-wrap;word-break:break-all}
+border:1px solid #777;border-radius:2px}small,.muted,.note{color:#5b6875}.note{margin:4px 0 10px}
+.ok{color:#1a7f37}.bad{color:#c62828}.bars{margin:6px 0 10px;max-width:620px}
+.bar{display:flex;align-items:center;gap:8px;margin:3px 0}
+.bar .lab{flex:0 0 110px;font-size:13px;text-align:right}.bar .track{flex:1 1 auto}
+.bar .b{display:block;height:14px;background:#087e8b;border-radius:2px;min-width:2px}
+.bar .val{flex:0 0 64px;font-size:12px;color:#445;white-space:nowrap}.timings .b{background:#0b3954}
+code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px}
+code{background:#f1f4f7;padding:1px 4px;border-radius:3px;white-space:pre-wrap;word-break:break-all}
 pre{max-height:320px;overflow:auto;background:#f6f8fa;padding:8px;border-radius:4px}
 table.prov td:first-child{font-weight:600;white-space:nowrap}
-#viewer{width:100%;height:560px;position:relative;border:1px solid #ccd5dd;border-radius:4px;overflow:hidden;
-background:#dde6ee}
-#viewer canvas{display:block}
+#viewer{width:100%;height:560px;position:relative;border:1px solid #ccd5dd;border-radius:4px;
+overflow:hidden;background:#dde6ee}#viewer canvas{display:block}
 .vbar{margin:8px 0 0;display:flex;gap:8px;align-items:center}
 .vbar button{border:1px solid #9ab;background:#f4f8fb;border-radius:4px;padding:3px 10px;cursor:pointer}
-#lightbox{position:fixed;inset:0;background:rgba(10,20,30,.88);display:none;align-items:center;justify-content:center;
-z-index:20;cursor:zoom-out}#lightbox img{max-width:96vw;max-height:94vh;background:#fff}
+#lightbox{position:fixed;inset:0;background:rgba(10,20,30,.88);display:none;align-items:center;
+justify-content:center;z-index:20;cursor:zoom-out}
+#lightbox img{max-width:96vw;max-height:94vh;background:#fff}
 footer{margin:10px 28px 24px;color:#667;font-size:12px}
 """
 
@@ -835,6 +873,27 @@ JS = """
 """
 
 
+SECTION_FAILED = "This section could not be built"
+
+
+def _guard(name: str, fn, *args):
+    """One section's HTML; an unexpected failure inside it becomes a visible note (and a warning) instead of
+    costing the whole report. Coastforge errors (bad input) still propagate to the user."""
+    import warnings
+
+    from .errors import CoastforgeError
+
+    try:
+        return fn(*args)
+    except CoastforgeError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - see above
+        warnings.warn(f"report section {name!r} failed: {type(exc).__name__}: {exc}", RuntimeWarning,
+                      stacklevel=2)
+        return (f'<p class="bad">{SECTION_FAILED}: {html.escape(type(exc).__name__)}: '
+                f'{html.escape(str(exc))}</p>')
+
+
 def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: str | Path | None = None,
                  overwrite: bool = False, progress: Callable[[str], None] | None = None) -> Path:
     """Write the offline ``report.html`` of the scene in ``scene_dir`` and return its path.
@@ -844,19 +903,23 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     metrics. ``progress(step)`` is told which part is being built."""
     t_start = time.perf_counter()
     say = progress or (lambda _msg: None)
-    scene_dir = Path(scene_dir)
-    if scene_dir.is_file():
-        scene_dir = scene_dir.parent
-    if not (scene_dir / "scene.json").is_file():
-        raise InputError(f"{scene_dir} holds no scene.json; give the --out folder of `coastforge generate`")
+    scene_path = Path(scene_dir)
+    scene_dir = scene_path.parent if scene_path.is_file() else scene_path
+    if not scene_path.is_file():
+        scene_path = scene_dir / "scene.json"
+    if not scene_path.is_file():
+        raise InputError(f"{scene_dir} holds no scene.json; give the --out folder of `coastforge generate` "
+                         "(or a scene / truth JSON file)")
     if truth is not None and not Path(truth).exists():
-        raise InputError(f"truth scene {truth} does not exist; give a truth.json written by `coastforge synth` "
+        raise InputError(f"truth scene {truth} does not exist; give a truth.json written by "
+                         "`coastforge synth` "
                          "or a scene.json")
     out_path = Path(out) if out else scene_dir / "report.html"
-    if out and out_path.exists() and not overwrite and out_path.resolve() != (scene_dir / "report.html").resolve():
+    default_out = (scene_dir / "report.html").resolve()
+    if out and out_path.exists() and not overwrite and out_path.resolve() != default_out:
         raise OutputExistsError(f"{out_path} exists; pass --overwrite to replace it, or choose another --out")
     say("loading the scene")
-    scene = load_scene(scene_dir)
+    scene = load_scene(scene_path)
     grid = scene.grid
     assets = _Assets(scene)
     image, image_src = _input_image(scene, scene_dir)
@@ -875,33 +938,39 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     parts["overview"] = _overview(image, top)
     base = _fit(image) if image is not None else None
     say("class map and detections")
-    parts["classes"] = _classes_section(scene, base, scene_dir)
+    parts["classes"] = _guard("classes", _classes_section, scene, base, scene_dir)
     det_base = _upscale_small(base) if base is not None else None
     img_w = image.shape[1] if image is not None else grid.width_px
-    parts["detections"] = _detections_section(det_base, dets, (det_base.shape[1] / img_w) if det_base is not None
-                                              else 1.0, row_of_det)
+    det_scale = (det_base.shape[1] / img_w) if det_base is not None else 1.0
+    parts["detections"] = _guard("detections", _detections_section, det_base, dets, det_scale,
+                                 row_of_det)
     say("objects and asset views")
-    parts["objects"], asset_css = _objects_section(scene, image, assets, links, dets)
+    objects_part = _guard("objects", _objects_section, scene, image, assets, links, dets)
+    parts["objects"], asset_css = objects_part if isinstance(objects_part, tuple) else (objects_part, "")
     say("terrain plots")
-    parts["terrain"] = _terrain_section(scene, scene_dir)
+    parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
     say("piers and vegetation")
-    parts["piers"] = _piers_section(scene, base)
-    parts["vegetation"] = _vegetation_section(scene)
+    parts["piers"] = _guard("piers", _piers_section, scene, base)
+    parts["vegetation"] = _guard("vegetation", _vegetation_section, scene)
     if truth is not None:
         say("metrics against the truth")
     parts["metrics"] = _metrics_section(scene, str(truth) if truth is not None else None)
     say("3D preview")
     glb, glb_src = _glb_bytes(scene, scene_dir, assets)
-    bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js").read_text(encoding="utf-8")
+    bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js")
+    bundle = bundle.read_text(encoding="utf-8")
     if glb is not None:
         parts["preview3d"] = (
             '<div id="viewer"></div><div class="vbar"><button data-view="top">top view</button>'
             '<button data-view="oblique">oblique</button><button data-view="low">low, from the water</button>'
-            f'<span class="muted">Drag to orbit, right-drag to pan, scroll to zoom. GLB: {html.escape(glb_src)}, '
+            '<span class="muted">Drag to orbit, right-drag to pan, scroll to zoom. '
+            f'GLB: {html.escape(glb_src)}, '
             f"{len(glb) / 1e6:.1f} MB.</span></div>"
-            f'<script id="glb-data" type="application/octet-stream">{base64.b64encode(glb).decode("ascii")}</script>')
+            '<script id="glb-data" type="application/octet-stream">'
+            f'{base64.b64encode(glb).decode("ascii")}</script>')
     else:
-        parts["preview3d"] = _note("No GLB could be built for the 3D preview (run <code>coastforge export DIR "
+        parts["preview3d"] = _note("No GLB could be built for the 3D preview (run "
+                                   "<code>coastforge export DIR "
                                    "--format gltf</code>).")
     parts["provenance"] = _provenance_section(scene, time.perf_counter() - t_start)
     nav = "".join(f'<a href="#sec-{k}">{TITLES[k]}</a>' for k in SECTIONS)
@@ -912,12 +981,14 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         counts[o.category] = counts.get(o.category, 0) + 1
     chips = [f"{scene.extent_m[0]:.0f} × {scene.extent_m[1]:.0f} m", f"{grid.gsd_m:.3f} m/px",
              *(f"{v} {k}{'s' if v != 1 else ''}" for k, v in counts.items()),
-             f"{len(scene.vegetation) if scene.vegetation is not None else 0} plants/rocks", f"seed {scene.seed}"]
+             f"{len(scene.vegetation) if scene.vegetation is not None else 0} plants/rocks",
+             f"seed {scene.seed}"]
     src = f" · input: {html.escape(image_src)}" if image_src else ""
     page = f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"/>
 <meta name="viewport" content="width=device-width, initial-scale=1"/>
 <title>coastforge report: {html.escape(scene.name)}</title><style>{CSS}{asset_css}</style></head><body>
-<header><h1>coastforge — {html.escape(scene.name)}</h1><div class="chips">{"".join(f"<span>{c}</span>" for c in chips)}</div>
+<header><h1>coastforge — {html.escape(scene.name)}</h1>
+<div class="chips">{"".join(f"<span>{c}</span>" for c in chips)}</div>
 <p>Generated environment report{src}</p></header><nav>{nav}</nav>{body}
 <footer>Self-contained page: works offline; the 3D view uses three.js (MIT licence), bundled.</footer>
 <div id="lightbox"><img alt="enlarged picture"/></div>
