@@ -126,11 +126,16 @@ def detections_to_boxes(dets: list[Detection], grid: Grid) -> list[PierBox]:
 
 
 def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float) -> tuple[list[PierBox], list[float]]:
-    """Extend each box end that floats along its axis until it meets land or another box."""
-    out, ext = [], []
-    polys = [b.polygon(grow=0.3) for b in boxes]
-    from shapely.geometry import Point
+    """Extend each box end that floats along its axis until it meets land or another box.
 
+    The other boxes are queried through an STRtree, so the cost grows with the number of boxes, not its square."""
+    import shapely
+    from shapely.strtree import STRtree
+
+    polys = np.array([b.polygon(grow=0.3) for b in boxes], dtype=object)
+    tree = STRtree(polys)
+    n_steps = int(cfg.max_gap_m / step)
+    out, ext = [], []
     for i, b in enumerate(boxes):
         a, e = b.ends()
         u = b.axis
@@ -138,17 +143,21 @@ def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float
         grown = 0.0
         for end, sign in ((a, -1.0), (e, 1.0)):
             r = b.width_m / 2 + 0.5
-            touching = probe.is_land(end, r) or any(
-                polys[j].distance(Point(end)) <= 0.3 for j in range(len(boxes)) if j != i)
-            if touching:
+            near = [j for j in tree.query(shapely.Point(end), predicate="dwithin", distance=0.3) if j != i]
+            if probe.is_land(end, r) or near:
                 new_ends.append(end)
                 continue
+            # every step of the ray at once: which steps fall inside another box?
+            ks = np.arange(1, n_steps + 1)
+            qs = end[None, :] + sign * u[None, :] * (ks * step)[:, None]
+            hit_box = np.zeros(len(ks), bool)
+            pts = shapely.points(qs)
+            pi, bi = tree.query(pts, predicate="within")
+            hit_box[pi[bi != i]] = True
             found = None
-            for k in range(1, int(cfg.max_gap_m / step) + 1):
-                q = end + sign * u * k * step
-                if probe.is_land(q, b.width_m / 2) or any(
-                        polys[j].contains(Point(q)) for j in range(len(boxes)) if j != i):
-                    found = q + sign * u * min(0.5, step)  # a little overlap so the parts touch
+            for k in range(len(ks)):
+                if hit_box[k] or probe.is_land(qs[k], b.width_m / 2):
+                    found = qs[k] + sign * u * min(0.5, step)  # a little overlap so the parts touch
                     break
             if found is None:
                 new_ends.append(end)
@@ -161,24 +170,22 @@ def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float
 
 
 def _components(boxes: list[PierBox], tol: float = 0.4) -> list[list[int]]:
+    """Connected groups of boxes that touch (within ``tol``), via an STRtree of the footprints."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from shapely.strtree import STRtree
+
     n = len(boxes)
-    polys = [b.polygon() for b in boxes]
-    seen = [False] * n
-    comps = []
-    for i in range(n):
-        if seen[i]:
-            continue
-        stack, comp = [i], []
-        seen[i] = True
-        while stack:
-            a = stack.pop()
-            comp.append(a)
-            for j in range(n):
-                if not seen[j] and polys[a].distance(polys[j]) <= tol:
-                    seen[j] = True
-                    stack.append(j)
-        comps.append(sorted(comp))
-    return comps
+    if n == 0:
+        return []
+    polys = np.array([b.polygon() for b in boxes], dtype=object)
+    left, right = STRtree(polys).query(polys, predicate="dwithin", distance=tol)
+    graph = coo_matrix((np.ones(len(left)), (left, right)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    comps: dict[int, list[int]] = {}
+    for i, lab in enumerate(labels):
+        comps.setdefault(int(lab), []).append(i)
+    return [sorted(c) for c in sorted(comps.values(), key=min)]
 
 
 def _nearest_land(probe: LandProbe, start: np.ndarray, max_dist: float, step: float) -> np.ndarray | None:
@@ -246,41 +253,49 @@ def _reaches_land(boxes: list[PierBox], comp: list[int], probe: LandProbe) -> bo
 
 def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[int]], probe: LandProbe,
                       config: PierConfig, step: float) -> None:
-    from shapely.geometry import Point
     from shapely.ops import nearest_points, unary_union
 
     limit = 8 * config.max_gap_m
     grounded = [c for c in comps if _reaches_land(boxes, c, probe)]
     floating = [c for c in comps if c not in grounded]
+    shapes = {id(c): unary_union([boxes[i].polygon() for i in c]) for c in floating}
+    # the nearest land of each floating group does not change as others are connected: compute it once
+    to_land: dict[int, tuple] = {}
+    for comp in floating:
+        w = max(1.5, max(boxes[i].width_m for i in comp))
+        for i in comp:
+            for end in boxes[i].ends():
+                q = _nearest_land(probe, end, limit, step)
+                if q is not None:
+                    d = float(np.linalg.norm(q - end))
+                    if id(comp) not in to_land or d < to_land[id(comp)][0]:
+                        to_land[id(comp)] = (d, end, q, w)
+    ground_shape = unary_union([boxes[i].polygon() for c in grounded for i in c]) if grounded else None
     # nearest first, so a chain of floating pieces grows outwards from the shore
     while floating:
         best = None
         for comp in floating:
-            shape = unary_union([boxes[i].polygon() for i in comp])
             w = max(1.5, max(boxes[i].width_m for i in comp))
-            for i in comp:
-                for end in boxes[i].ends():
-                    q = _nearest_land(probe, end, limit, step)
-                    if q is not None:
-                        d = float(np.linalg.norm(q - end))
-                        if best is None or d < best[0]:
-                            best = (d, comp, end, q, w, True)
-            for g in grounded:
-                gshape = unary_union([boxes[j].polygon() for j in g])
-                a, b = nearest_points(shape, gshape)
-                d = a.distance(b)
+            if id(comp) in to_land:
+                d, end, q, _ = to_land[id(comp)]
+                if best is None or d < best[0]:
+                    best = (d, comp, end, q, w, True)
+            if ground_shape is not None and not ground_shape.is_empty:
+                pa, pb = nearest_points(shapes[id(comp)], ground_shape)
+                d = pa.distance(pb)
                 if d <= limit and (best is None or d < best[0]):
-                    best = (d, comp, np.array(a.coords[0]), np.array(b.coords[0]), w, False)
+                    best = (d, comp, np.array(pa.coords[0]), np.array(pb.coords[0]), w, False)
         if best is None:
             break
-        d, comp, a, b, w, to_land = best
+        d, comp, a, b, w, land = best
         u = (b - a) / max(np.linalg.norm(b - a), 1e-6)
-        into = max(1.5, w) if to_land else 0.3  # reach well onto land; just touch another deck
+        into = max(1.5, w) if land else 0.3  # reach well onto land; just touch another deck
         boxes.append(box_from_ends(a - u * 0.3, b + u * into, w, "connector", 0.5))
         ext.append(0.0)
         floating.remove(comp)
         grounded.append(comp + [len(boxes) - 1])
-    del Point
+        new = unary_union([shapes[id(comp)], boxes[-1].polygon()])
+        ground_shape = new if ground_shape is None else unary_union([ground_shape, new])
 
 
 def _chain(b: PierBox, asset, prefix: str, structure: int, water_level_m: float) -> list[SceneObject]:

@@ -136,6 +136,10 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     from .types import HeightMap
     from .vegetation import scatter
 
+    from . import tiling
+
+    if tiling.needs_tiling(req.image):  # large orthophotos run by windows in bounded memory
+        return tiling.generate_tiled(req, config, progress)
     out = prepare_output_dir(req.out, req.overwrite)
     timer = _Timer(progress)
     seed = config.seed

@@ -1,0 +1,321 @@
+"""Scale benchmark: ``python -m coastforge.bench.scale``.
+
+1. Image size: peak memory (the process tree's resident set, sampled with psutil, and the child's own
+   ``ru_maxrss``) and wall time of ``tiling.generate_tiled`` on synthetic GeoTIFF squares (1k, 4k, 8k,
+   16k px by default). Each run is a fresh child process, so its peak is its own.
+2. Workers: a batch of 20 small synthetic scenes plus one corrupted input on a local Dask cluster
+   (``coastforge.batch.run_batch``) with 1 and with 2 workers, then a re-run that must skip what is done.
+
+The big images are mirrored tilings of one rendered synthetic level (``coastforge.synth``), written band by
+band (never whole in memory), georeferenced in UTM. Timings on a shared machine vary: the load average
+is printed beside them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_SIZES = (1024, 4096, 8192, 16384)
+GSD_M = 0.2
+
+
+def base_render(work: Path, size_m: float = 200.0, preset: str = "marina", seed: int = 7) -> np.ndarray:
+    """One rendered synthetic level (RGB uint8), cached in ``work``."""
+    cache = work / f"base_{preset}_{int(size_m)}_{seed}.npy"
+    if cache.is_file():
+        return np.load(cache)
+    try:
+        from ..synth import synthesize_level
+        from ..synth_render import mesh_source, render_level
+
+        level = synthesize_level(preset, seed, size_m=size_m, grid_m=GSD_M)
+        rgb = render_level(level, mesh_source(None), GSD_M, seed)
+    except ImportError:  # no synth module: a procedural coast with bright "boats"
+        rgb = procedural_scene(int(size_m / GSD_M), seed)
+    np.save(cache, rgb)
+    return rgb
+
+
+def procedural_scene(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:n, 0:n]
+    water = xx + 0.3 * yy > 0.5 * n
+    img = np.where(water[..., None], np.array([28, 78, 120]), np.array([95, 95, 92])).astype(np.float32)
+    img += rng.normal(0, 3, img.shape)
+    for _ in range(n // 40):
+        cx, cy = rng.integers(0, n, 2)
+        if water[cy, cx]:
+            img[max(0, cy - 6):cy + 6, max(0, cx - 20):cx + 20] = 235
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def write_mirrored_geotiff(path: Path, base: np.ndarray, size_px: int, band_rows: int = 512) -> Path:
+    """A size x size RGB GeoTIFF tiling ``base`` with alternate mirroring (seamless), written by row bands."""
+    import rasterio
+    from affine import Affine
+
+    bh, bw = base.shape[:2]
+    ext_x = np.concatenate([base, base[:, ::-1]], axis=1)  # one period along x: base + its mirror
+    ext = np.concatenate([ext_x, ext_x[::-1]], axis=0)  # and along y
+    ph, pw = ext.shape[:2]
+    cols = np.arange(size_px) % pw
+    profile = dict(driver="GTiff", width=size_px, height=size_px, count=3, dtype="uint8", crs="EPSG:32633",
+                   transform=Affine(GSD_M, 0.0, 500000.0, 0.0, -GSD_M, 4100000.0), tiled=True, blockxsize=512,
+                   blockysize=512, compress="deflate", predictor=2, BIGTIFF="IF_SAFER")
+    tmp = path.with_suffix(".part.tif")
+    with rasterio.open(tmp, "w", **profile) as dst:
+        from rasterio.windows import Window
+
+        for r0 in range(0, size_px, band_rows):
+            r1 = min(size_px, r0 + band_rows)
+            rows = np.arange(r0, r1) % ph
+            band = ext[rows][:, cols]
+            dst.write(np.moveaxis(band, -1, 0), window=Window(0, r0, size_px, r1 - r0))
+    os.replace(tmp, path)
+    return path
+
+
+class TreePeak:
+    """Peak resident memory of a process and its children, sampled in a thread."""
+
+    def __init__(self, pid: int, every_s: float = 0.25):
+        import psutil
+
+        self.proc = psutil.Process(pid)
+        self.every = every_s
+        self.peak = 0
+        self._stop = threading.Event()
+        self._t = threading.Thread(target=self._run, daemon=True)
+        self._t.start()
+
+    def _run(self):
+        import psutil
+
+        while not self._stop.is_set():
+            try:
+                procs = [self.proc] + self.proc.children(recursive=True)
+                rss = 0
+                for p in procs:
+                    try:
+                        rss += p.memory_info().rss
+                    except psutil.Error:
+                        pass
+                self.peak = max(self.peak, rss)
+            except psutil.Error:
+                break
+            self._stop.wait(self.every)
+
+    def stop(self) -> int:
+        self._stop.set()
+        self._t.join()
+        return self.peak
+
+
+def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: int) -> None:
+    """Runs in the child process: one tiled generate, figures as JSON on the last line of stdout."""
+    import resource
+
+    from ..config import Config
+    from ..pipeline import GenerateRequest
+    from ..tiling import generate_tiled
+
+    t0 = time.perf_counter()
+
+    def progress(stage: str, frac: float) -> None:
+        # one line per finished stage on stderr: a run stopped early still leaves its figures
+        if frac >= 1.0:
+            mx = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+            print(json.dumps({"stage": stage, "elapsed_s": round(time.perf_counter() - t0, 2),
+                              "maxrss_mb": round(mx, 1)}), file=sys.stderr, flush=True)
+
+    req = GenerateRequest(image=image, out=out, overwrite=True, report=False)
+    r = generate_tiled(req, Config(), progress, tile_px=tile_px, overlap_px=overlap_px, scene_max_px=scene_max_px)
+    wall = time.perf_counter() - t0
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    print(json.dumps({"wall_s": wall, "maxrss_mb": ru.ru_maxrss / 1024.0, "cpu_s": ru.ru_utime + ru.ru_stime,
+                      "timings_s": r.timings_s, "n_objects": r.n_objects}))
+
+
+def _stage_lines(text: str) -> list[dict]:
+    out = []
+    for line in text.splitlines():
+        if line.startswith('{"stage"'):
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                pass
+    return out
+
+
+def run_size(work: Path, base: np.ndarray, size: int, tile_px: int, overlap_px: int, scene_max_px: int,
+             timeout_s: float | None = None) -> dict:
+    """One child run; on ``timeout_s`` it is stopped and the stages it finished are reported."""
+    img = work / f"scale_{size}.tif"
+    if not img.is_file():
+        t0 = time.perf_counter()
+        write_mirrored_geotiff(img, base, size)
+        print(f"  wrote {img.name} in {time.perf_counter() - t0:.1f} s", flush=True)
+    out = work / f"out_{size}"
+    cmd = [sys.executable, "-m", "coastforge.bench.scale", "--child", str(img), str(out), str(tile_px),
+           str(overlap_px), str(scene_max_px)]
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    mon = TreePeak(p.pid)
+    timed_out = False
+    try:
+        stdout, stderr = p.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        stdout, stderr = p.communicate()
+        timed_out = True
+    peak = mon.stop()
+    wall = time.perf_counter() - t0
+    stages = _stage_lines(stderr)
+    if timed_out or p.returncode != 0:
+        why = f"stopped after {timeout_s:.0f} s" if timed_out else (stderr.strip().splitlines() or ["?"])[-1]
+        return {"size": size, "error": why, "wall_s": wall, "peak_tree_mb": peak / 2**20, "stages": stages}
+    fig = json.loads(stdout.strip().splitlines()[-1])
+    t = fig["timings_s"]
+    proc = sum(v for k, v in t.items() if k not in ("library", "total", "report"))
+    return {"size": size, "wall_s": wall, "peak_tree_mb": peak / 2**20, "maxrss_mb": fig["maxrss_mb"],
+            "cpu_s": fig["cpu_s"], "processing_s": proc, "no_piers_s": proc - t.get("piers", 0.0),
+            "timings_s": t, "n_objects": fig["n_objects"], "stages": stages}
+
+
+def bench_sizes(work: Path, sizes, tile_px: int, overlap_px: int, scene_max_px: int,
+                timeout_s: float | None = None) -> list[dict]:
+    base = base_render(work)
+    print(f"== tiled generate vs image size (tile {tile_px}, overlap {overlap_px}, scene grid <= {scene_max_px}, "
+          f"{GSD_M} m/px) ==", flush=True)
+    rows = []
+    for s in sizes:
+        load = os.getloadavg()[0]
+        r = run_size(work, base, s, tile_px, overlap_px, scene_max_px, timeout_s)
+        r["load"] = load
+        rows.append(r)
+        if "error" in r:
+            done = ", ".join(f"{st['stage']} at {st['elapsed_s']:.0f} s" for st in r["stages"])
+            print(f"{s:6d} px  INCOMPLETE after {r['wall_s']:.1f} s ({r['error']}); peak tree RSS "
+                  f"{r['peak_tree_mb']:.0f} MB; stages finished: {done or 'none'}", flush=True)
+            continue
+        t = r["timings_s"]
+        print(f"{s:6d} px  wall {r['wall_s']:7.1f} s  processing {r['processing_s']:7.1f} s "
+              f"(without piers {r['no_piers_s']:7.1f} s)  "
+              f"peak tree RSS {r['peak_tree_mb']:7.0f} MB  (maxrss {r['maxrss_mb']:.0f} MB)  load {load:.1f}  "
+              f"seg {t.get('segment', 0):.1f} det {t.get('detect', 0):.1f} terrain {t.get('terrain', 0):.1f} "
+              f"match {t.get('match', 0):.1f} s; objects {sum(v for k, v in r['n_objects'].items() if k != 'vegetation')}",
+              flush=True)
+    ok = {r["size"]: r for r in rows if "error" not in r}
+    for a, b in ((4096, 16384), (4096, 8192), (1024, 4096)):
+        if a in ok and b in ok:
+            area = (b / a) ** 2
+            for key, what in (("processing_s", "processing"), ("no_piers_s", "processing without piers")):
+                ratio = ok[b][key] / max(ok[a][key], 1e-9)
+                print(f"{what} time {b}/{a}: {ratio:.2f}x for {area:.0f}x the area "
+                      f"(linear within 1.3x: {ratio <= 1.3 * area})")
+    return rows
+
+
+# --------------------------------------------------------------------------------------------- batch
+
+def make_batch(work: Path, n: int = 20, crop_px: int = 400) -> Path:
+    """``n`` small scenes cropped from the base render at different offsets and flips, plus one corrupted file."""
+    from ..fsio import write_png
+
+    base = base_render(work)
+    folder = work / "batch_inputs"
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(0)
+    h, w = base.shape[:2]
+    items = []
+    for k in range(n):
+        r0, c0 = int(rng.integers(0, h - crop_px)), int(rng.integers(0, w - crop_px))
+        crop = base[r0:r0 + crop_px, c0:c0 + crop_px]
+        if k % 2:
+            crop = crop[:, ::-1]
+        if k % 3 == 1:
+            crop = crop[::-1]
+        p = write_png(folder / f"scene_{k:02d}.png", np.ascontiguousarray(crop))
+        items.append({"image": p.name, "gsd_m": GSD_M})
+    bad = folder / "corrupted.png"
+    bad.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(rng.integers(0, 256, 4000, dtype=np.uint8)))
+    items.insert(n // 2, {"image": bad.name, "gsd_m": GSD_M})
+    lst = folder / "batch.json"
+    lst.write_text(json.dumps({"items": items}, indent=1))
+    return lst
+
+
+def bench_batch(work: Path, n: int = 20) -> list[dict]:
+    import shutil
+
+    from ..batch import read_batch_list, run_batch
+    from ..config import Config
+
+    lst = make_batch(work, n)
+    items = read_batch_list(lst)
+    cfg = Config()
+    print(f"\n== batch of {n} scenes (400x400 px) + 1 corrupted input on a local Dask cluster ==", flush=True)
+    rows = []
+    for workers, fresh in ((1, True), (2, True), (2, False)):
+        out = work / f"batch_out_{workers}"
+        if fresh and out.exists():
+            shutil.rmtree(out)
+        load = os.getloadavg()[0]
+        rep = run_batch(items, out, cfg, workers=workers)
+        failed = [it["name"] for it in rep["items"] if it["status"] == "failed"]
+        rows.append({"workers": workers, "rerun": not fresh, "wall_s": rep["wall_s"], "done": rep["done"],
+                     "skipped": rep["skipped"], "failed": rep["failed"], "failed_items": failed, "load": load})
+        print(f"workers {workers} {'re-run' if not fresh else 'fresh '}: wall {rep['wall_s']:7.1f} s  "
+              f"done {rep['done']}  skipped {rep['skipped']}  failed {rep['failed']} {failed}  load {load:.1f}",
+              flush=True)
+    if len(rows) >= 2 and rows[0]["done"] and rows[1]["done"]:
+        print(f"speed-up 2 vs 1 workers: {rows[0]['wall_s'] / rows[1]['wall_s']:.2f}x")
+    return rows
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m coastforge.bench.scale", description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", default=",".join(map(str, DEFAULT_SIZES)),
+                    help="comma-separated square sizes in px (default %(default)s)")
+    ap.add_argument("--tile", type=int, default=2048)
+    ap.add_argument("--overlap", type=int, default=256)
+    ap.add_argument("--scene-max", type=int, default=4096, help="scene grid side limit (terrain, classes)")
+    ap.add_argument("--timeout", type=float, default=None,
+                    help="stop a size run after this many seconds and report the stages it finished")
+    ap.add_argument("--work", default=None, help="folder for the synthetic inputs and outputs (default: a temp dir)")
+    ap.add_argument("--no-sizes", action="store_true", help="skip the image-size runs")
+    ap.add_argument("--no-batch", action="store_true", help="skip the Dask batch runs")
+    ap.add_argument("--batch-n", type=int, default=20)
+    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    ap.add_argument("--child", nargs=5, metavar=("IMAGE", "OUT", "TILE", "OVERLAP", "SCENE_MAX"),
+                    help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        image, out, tile, ov, smax = args.child
+        _child(image, out, int(tile), int(ov), int(smax))
+        return
+    work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="coastforge_scale_"))
+    work.mkdir(parents=True, exist_ok=True)
+    print(f"work folder: {work}; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}", flush=True)
+    figures: dict = {}
+    if not args.no_sizes:
+        sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
+        figures["sizes"] = bench_sizes(work, sizes, args.tile, args.overlap, args.scene_max, args.timeout)
+    if not args.no_batch:
+        figures["batch"] = bench_batch(work, args.batch_n)
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main()
