@@ -81,8 +81,11 @@ def prepare_output_dir(path: str | os.PathLike, overwrite: bool) -> Path:
     return path
 
 
-def write_png(path: str | os.PathLike, array: np.ndarray) -> Path:
-    """Write a uint8/uint16 gray or RGB(A) array as PNG, atomically. RGB arrays are in RGB order."""
+def write_png(path: str | os.PathLike, array: np.ndarray, compression: int = 1) -> Path:
+    """Write a uint8/uint16 gray or RGB(A) array as PNG, atomically. RGB arrays are in RGB order.
+
+    Compression level 1 (of 9): about 4x faster than OpenCV's default for ~15 % larger files; the
+    pipeline writes a dozen full-size rasters per scene."""
     import cv2
 
     a = np.ascontiguousarray(array)
@@ -92,7 +95,7 @@ def write_png(path: str | os.PathLike, array: np.ndarray) -> Path:
         a = a[:, :, ::-1]
     elif a.ndim == 3 and a.shape[2] == 4:
         a = a[:, :, [2, 1, 0, 3]]
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(a))
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(a), [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
     if not ok:
         raise OSError(f"could not encode PNG for {path}")
     return atomic_write_bytes(path, buf.tobytes())

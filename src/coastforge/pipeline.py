@@ -184,8 +184,6 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
             by_cat.setdefault(a.category, []).append(a.id)
         veg = scatter(class_map.ids, height.z_m, grid, by_cat, objects, config.vegetation, seed)
     with timer.stage("write"):
-        from .fsio import write_png
-
         scene = Scene(
             name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
             crs=grid.crs, transform=grid.transform, height=height.z_m.astype(np.float32),
@@ -203,8 +201,6 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
                 "python": sys.version.split()[0], "platform": platform.platform(),
             })
         _write_stage_outputs(out, image, cleaned, class_map, dets, terrain, veg)
-        for name, m in veg.masks.items():
-            write_png(out / "pcg" / f"{name}.png", m)
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)
     scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
@@ -245,16 +241,23 @@ def _clean(image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: in
 
 
 def _write_stage_outputs(out: Path, image: GeoImage, cleaned: np.ndarray, class_map: ClassMap, dets, terrain, veg):
+    """The stages' side outputs (previews, paint-layer weights, biome map, hillshade, cross-sections). They are
+    independent files and PNG encoding releases the GIL, so they are written concurrently."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from .detection import detections_to_json
     from .fsio import write_png
     from .segmentation.outputs import write_segmentation
+    from .terrain.outputs import write_terrain_outputs
 
-    write_png(out / "cleaned.png", cleaned)
-    write_segmentation(out / "segmentation", class_map, image)
     g = image.grid
     atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
-    try:
-        from .terrain.outputs import write_terrain_outputs
-    except ImportError:
-        return
-    write_terrain_outputs(out / "terrain_outputs", terrain)
+    jobs = [
+        lambda: write_png(out / "cleaned.png", cleaned),
+        lambda: write_segmentation(out / "segmentation", class_map, image),
+        lambda: write_terrain_outputs(out / "terrain_outputs", terrain),
+        *[(lambda n=name, m=mask: write_png(out / "pcg" / f"{n}.png", m)) for name, mask in veg.masks.items()],
+    ]
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        for f in [pool.submit(j) for j in jobs]:
+            f.result()  # re-raise the first failure
