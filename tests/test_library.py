@@ -552,3 +552,24 @@ def test_unreal_capture_script_output_builds_a_library(tmp_path, monkeypatch):
     assert boat.dims_m == pytest.approx((6.0, 2.0, 1.2)) and boat.ue_path == "/Game/Harbour/SM_Boat.SM_Boat"
     img = read_png(out / "SM_Van" / "l1_ground.png")
     assert lib.query(img, doc["assets"][1]["gsd_m"], k=1)[0][0] == "SM_Van"
+
+
+def test_library_glbs_are_gltf_y_up_and_load_back_z_up(tmp_path):
+    """Stored meshes follow glTF (y up) so engines import them upright; Library.mesh gives the scene frame."""
+    import trimesh
+
+    from coastforge.assets.kit import kit_dir
+    from coastforge.assets.library import build_library
+
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "runabout.glb").symlink_to(kit_dir() / "runabout.glb")
+    (src / "manifest.json").write_text(
+        '{"assets": [{"id": "runabout", "category": "boat", "mesh": "runabout.glb", "length_m": 6.0}]}')
+    lib = build_library(src / "manifest.json", tmp_path / "lib")
+    raw = trimesh.load(lib.asset("runabout").mesh_path, force="mesh")
+    ext = raw.extents
+    assert ext[1] < ext[0] and abs(ext[1] - lib.asset("runabout").dims_m[2]) < 0.1  # height along y
+    m = lib.mesh("runabout")
+    L, W, H = lib.asset("runabout").dims_m
+    assert abs(m.extents[0] - L) < 0.05 * L and abs(m.extents[2] - H) < 0.05 * H  # back to z up

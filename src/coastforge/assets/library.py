@@ -39,6 +39,8 @@ from .index import VectorIndex
 from .meshes import MESH_SUFFIXES, file_hash, load_mesh, normalise_mesh
 
 FORMAT = "coastforge.library/1"
+# scene frame (z up) -> glTF (y up): (x, y, z) -> (x, z, -y); a rotation about +x, so faces keep their winding
+Z_UP_TO_GLTF = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0], [0, -1.0, 0, 0], [0, 0, 0, 1.0]])
 THUMBNAILS_FORMAT = "coastforge.thumbnails/1"
 LIBRARY_JSON = "library.json"
 INDEX_FILE = "index.faiss"
@@ -82,6 +84,7 @@ class AssetRecord:
     view_gsd_m: float  # metres per pixel of every view of this asset
     tags: tuple[str, ...] = ()
     view_conditions: tuple[str, ...] = ()  # "l<k>_<background>" per view
+    mesh_up: str = "z"  # "y": the GLB follows glTF's y-up convention (libraries built since this field exists)
 
     @property
     def length_m(self) -> float:
@@ -421,7 +424,10 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
             mesh.apply_translation([0.0, 0.0, -draft])  # z = 0 at the waterline
         root = Path(out)
         mesh_rel = f"meshes/{spec.id}.glb"
-        atomic_write_bytes(root / mesh_rel, mesh.export(file_type="glb"))
+        # glTF is y-up: store (x, y, z) as (x, z, -y), so Unreal's and other glTF importers see it upright
+        gltf_mesh = mesh.copy()
+        gltf_mesh.apply_transform(Z_UP_TO_GLTF)
+        atomic_write_bytes(root / mesh_rel, gltf_mesh.export(file_type="glb"))
         gsd = choose_view_gsd(norm.dims_m, config)
         lightings = view_lightings()
         views, images = [], []
@@ -443,7 +449,7 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
                 images.append(img)
         rec = {
             "id": spec.id, "category": spec.category, "dims_m": [round(v, 5) for v in norm.dims_m],
-            "draft_m": float(draft), "floating": bool(floating), "ue_path": spec.ue_path, "mesh": mesh_rel,
+            "draft_m": float(draft), "floating": bool(floating), "ue_path": spec.ue_path, "mesh": mesh_rel, "mesh_up": "y",
             "source_mesh": str(spec.mesh), "views": views, "paint_views": paint_views, "view_gsd_m": gsd,
             "tags": list(spec.tags),
             "normalisation": {"up_axis": norm.up_axis, "forward_axis": norm.forward_axis, "unit": norm.unit,
@@ -567,7 +573,10 @@ class Library:
                 box.visual.face_colors = np.array([150, 150, 150, 255], np.uint8)
                 self._meshes[asset_id] = box
             else:
-                self._meshes[asset_id] = load_mesh(a.mesh_path, asset_id)
+                m = load_mesh(a.mesh_path, asset_id)
+                if a.mesh_up == "y":  # stored in glTF's y-up convention: back to the scene frame
+                    m.apply_transform(np.linalg.inv(Z_UP_TO_GLTF))
+                self._meshes[asset_id] = m
         return self._meshes[asset_id].copy()
 
     def view(self, asset_id: str, lighting: int = 1, background: str = "water") -> tuple[np.ndarray, float]:
@@ -643,7 +652,7 @@ def _record_from_json(root: Path, a: dict) -> AssetRecord:
         id=str(a["id"]), category=str(a["category"]), dims_m=dims, draft_m=float(a.get("draft_m", 0.0)),
         floating=bool(a.get("floating", False)), ue_path=a.get("ue_path"),
         mesh_path=(root / a["mesh"]) if a.get("mesh") else None, views=views, view_gsd_m=float(a["view_gsd_m"]),
-        tags=tuple(a.get("tags", ())), view_conditions=conds,
+        tags=tuple(a.get("tags", ())), view_conditions=conds, mesh_up=str(a.get("mesh_up", "z")),
     )
 
 
