@@ -1,0 +1,303 @@
+"""Train the learned detector on synthetic renders and export it to ONNX.
+
+``python -m coastforge.train.train_detector --out DIR --seed N --minutes M [--data DIR]``
+
+Without ``--data`` the training levels are rendered first (``detector_data.generate``, seeds from 100;
+seeds below 100 are validation). Writes ``DIR/detector.onnx`` (refreshed at checkpoints, so a run cut
+short still leaves a model) and ``DIR/detector.json`` (settings, parameter count, loss curve). The
+learning rate follows a cosine over the time budget, so ``--steps`` fixes the step count for an exact
+re-run. torch is a training-time extra (``pip install coastforge[train]``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from ..rng import stage_rng
+from .detector_data import CLASSES, WORK_GSD_M
+from .detector_model import N_CLASSES, build_model, export_wrapper
+
+STRIDE = 4
+
+
+# ------------------------------------------------------------------------------------------ samples
+
+def affine_boxes(boxes: np.ndarray, M: np.ndarray, scale: float, angle_deg: float) -> np.ndarray:
+    """Boxes (N, 6: cls, cx, cy, length, width, yaw) under ``M = cv2.getRotationMatrix2D(.., angle, scale)``
+    (+ translation): centres mapped, sizes scaled, yaw turned by ``angle`` (CCW on screen = CCW yaw)."""
+    out = boxes.copy()
+    if len(out):
+        pts = np.c_[out[:, 1:3], np.ones(len(out))] @ M.T
+        out[:, 1:3] = pts
+        out[:, 3:5] *= scale
+        out[:, 5] = (out[:, 5] + angle_deg + 180.0) % 360.0 - 180.0
+    return out
+
+
+def photometric(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Colour, hue, blur, noise and JPEG randomisation (uint8 RGB in, uint8 out)."""
+    x = img.astype(np.float32)
+    if rng.random() < 0.3:  # hue shift: unseen water and hull colours
+        hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV)
+        hsv[..., 0] = (hsv[..., 0].astype(np.int16) + int(rng.integers(-25, 26))) % 180
+        x = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB).astype(np.float32)
+    x = x * rng.uniform(0.8, 1.2, 3)[None, None, :].astype(np.float32)
+    m = x.mean()
+    x = (x - m) * rng.uniform(0.65, 1.35) + m + rng.uniform(-35, 35)
+    if rng.random() < 0.15:
+        g = x.mean(2, keepdims=True)
+        x = g + (x - g) * rng.uniform(0.0, 0.6)
+    if rng.random() < 0.3:
+        x = 255.0 * (np.clip(x, 0, 255) / 255.0) ** rng.uniform(0.7, 1.4)
+    if rng.random() < 0.4:
+        x = cv2.GaussianBlur(x, (0, 0), float(rng.uniform(0.4, 1.3)))
+    if rng.random() < 0.5:
+        x = x + rng.standard_normal(x.shape).astype(np.float32) * float(rng.uniform(1, 7))
+    out = np.clip(x, 0, 255).astype(np.uint8)
+    if rng.random() < 0.4:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 92))])
+        if ok:
+            out = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    return out
+
+
+def make_targets(boxes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """CenterNet targets at stride 4: heat (C, h, w), regression (8, h, w), box mask and angle mask (h, w).
+
+    Centres are oriented Gaussians (elongated along the hull, so boats moored side by side keep
+    separate peaks); regression is supervised on the cells near each centre (the nearest object wins)."""
+    n = size // STRIDE
+    heat = np.zeros((N_CLASSES, n, n), np.float32)
+    reg = np.zeros((8, n, n), np.float32)
+    wmask = np.zeros((n, n), np.float32)
+    amask = np.zeros((n, n), np.float32)
+    owner = np.zeros((n, n), np.float32)
+    jj, ii = np.meshgrid(np.arange(n) + 0.5, np.arange(n) + 0.5)
+    for c, cx, cy, L, W, yaw in boxes:
+        u, v = cx / STRIDE, cy / STRIDE
+        if not (0 <= u < n and 0 <= v < n):
+            continue
+        t = math.radians(yaw)
+        f = np.array([math.cos(t), -math.sin(t)])  # front in (col, row)
+        sl, sw = max(0.6, L / STRIDE / 6.0), max(0.6, W / STRIDE / 6.0)
+        du, dv = jj - u, ii - v
+        along = du * f[0] + dv * f[1]
+        across = -du * f[1] + dv * f[0]
+        g = np.exp(-(along ** 2 / (2 * sl * sl) + across ** 2 / (2 * sw * sw)))
+        pj, pi = int(u), int(v)
+        g[pi, pj] = 1.0
+        ci = int(c)
+        np.maximum(heat[ci], g, out=heat[ci])
+        sel = ((g > 0.6) & (g > owner))
+        sel[pi, pj] = True
+        owner[sel] = g[sel]
+        reg[0][sel] = u - (jj[sel] - 0.5)
+        reg[1][sel] = v - (ii[sel] - 0.5)
+        reg[2][sel] = math.log(max(L, 1.0) / STRIDE)
+        reg[3][sel] = math.log(max(W, 1.0) / STRIDE)
+        reg[4][sel], reg[5][sel] = math.cos(2 * t), math.sin(2 * t)
+        reg[6][sel], reg[7][sel] = math.cos(t), math.sin(t)
+        wmask[sel] = 1.0
+        amask[sel] = 0.0 if CLASSES[ci] == "buoy" else 1.0
+    return heat, reg, wmask, amask
+
+
+class Sampler:
+    """Random augmented crops from the generated levels (re-reads the index as more levels appear)."""
+
+    def __init__(self, data_dir: Path, crop: int, rng: np.random.Generator):
+        self.dir, self.crop, self.rng = data_dir, crop, rng
+        self.images: dict[str, np.ndarray] = {}
+        self.items: list[dict] = []
+        self.refresh()
+
+    def refresh(self) -> None:
+        idx = self.dir / "index.json"
+        if not idx.is_file():
+            raise InputError(f"no training index {idx}; generate data with coastforge.train.detector_data")
+        for it in json.loads(idx.read_text())["items"]:
+            if it["image"] not in self.images:
+                bgr = cv2.imread(str(self.dir / it["image"]), cv2.IMREAD_COLOR)
+                if bgr is None:
+                    continue
+                self.images[it["image"]] = np.ascontiguousarray(bgr[:, :, ::-1])
+                self.items.append(it)
+        if not self.items:
+            raise InputError(f"the training index {idx} lists no readable images")
+
+    def sample(self) -> tuple[np.ndarray, np.ndarray]:
+        rng, C = self.rng, self.crop
+        it = self.items[int(rng.integers(len(self.items)))]
+        img = self.images[it["image"]]
+        boxes = np.asarray(it["boxes"], np.float64).reshape(-1, 6)
+        h, w = img.shape[:2]
+        if len(boxes) and rng.random() < 0.75:  # most crops around an object (they are sparse)
+            b = boxes[int(rng.integers(len(boxes)))]
+            cx, cy = b[1] + rng.uniform(-0.4, 0.4) * C, b[2] + rng.uniform(-0.4, 0.4) * C
+        else:
+            cx, cy = rng.uniform(0, w), rng.uniform(0, h)
+        angle = float(rng.uniform(-180, 180))
+        scale = float(math.exp(rng.uniform(math.log(0.8), math.log(1.25))))
+        M = cv2.getRotationMatrix2D((float(cx), float(cy)), angle, scale)
+        M[:, 2] += np.array([C / 2 - cx, C / 2 - cy])
+        fill = tuple(float(v) for v in rng.uniform(20, 200, 3))
+        crop = cv2.warpAffine(img, M, (C, C), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=fill)
+        bx = affine_boxes(boxes, M, scale, angle)
+        if rng.random() < 0.5:  # mirror: yaw → 180 - yaw
+            crop = np.ascontiguousarray(crop[:, ::-1])
+            if len(bx):
+                bx[:, 1] = C - bx[:, 1]
+                bx[:, 5] = (180.0 - bx[:, 5] + 180.0) % 360.0 - 180.0
+        return photometric(crop, rng), bx
+
+
+# ------------------------------------------------------------------------------------------ training
+
+def losses(torch, out, heat, reg, wmask, amask):
+    """CenterNet focal loss on the heatmaps + L1 on offsets, log sizes, axis and heading."""
+    p = torch.sigmoid(out[:, :N_CLASSES]).clamp(1e-4, 1 - 1e-4)
+    pos = (heat >= 0.999).float()
+    npos = pos.sum().clamp(min=1.0)
+    lpos = -(torch.log(p) * (1 - p) ** 2 * pos).sum()
+    lneg = -(torch.log(1 - p) * p ** 2 * (1 - heat) ** 4 * (1 - pos)).sum()
+    l_heat = (lpos + lneg) / npos
+    r = out[:, N_CLASSES:]
+    wm, am = wmask[:, None], amask[:, None]
+    nw, na = wm.sum().clamp(min=1.0), am.sum().clamp(min=1.0)
+    l_off = (torch.abs(r[:, 0:2] - reg[:, 0:2]) * wm).sum() / nw
+    l_size = (torch.abs(r[:, 2:4] - reg[:, 2:4]) * wm).sum() / nw
+    l_axis = (torch.abs(r[:, 4:6] - reg[:, 4:6]) * am).sum() / na
+    l_head = (torch.abs(r[:, 6:8] - reg[:, 6:8]) * am).sum() / na
+    total = l_heat + l_off + l_size + 2.0 * l_axis + l_head
+    return total, {"heat": l_heat, "off": l_off, "size": l_size, "axis": l_axis, "head": l_head}
+
+
+def export_onnx(net, path: Path) -> Path:
+    """Export (dynamic H, W) atomically; the graph ends with the 3x3 peak search."""
+    import torch
+
+    from ..fsio import atomic_path
+
+    net.eval()
+    wrap = export_wrapper(net)
+    with atomic_path(path) as tmp:
+        torch.onnx.export(wrap, (torch.zeros(1, 3, 128, 128),), str(tmp), dynamo=False, opset_version=17,
+                          input_names=["image"], output_names=["heat", "peaks", "reg"],
+                          dynamic_axes={"image": {2: "h", 3: "w"}, "heat": {2: "hh", 3: "ww"},
+                                        "peaks": {2: "hh", 3: "ww"}, "reg": {2: "hh", 3: "ww"}})
+    net.train()
+    return path
+
+
+def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path | None = None,
+          steps: int | None = None, batch: int = 16, crop: int = 160, lr: float = 2e-3, width: int = 16,
+          threads: int = 1, data_minutes: float = 10.0, init: str | Path | None = None) -> dict:
+    from ..registry import require
+
+    torch = require("torch", "train", "training the learned detector")
+    torch.set_num_threads(threads)
+    torch.manual_seed(seed)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if data_dir is None:
+        from .detector_data import generate
+
+        data_dir = out / "data"
+        generate(data_dir, list(range(100 + seed * 1000, 100 + seed * 1000 + 1000)), minutes=data_minutes)
+    sampler = Sampler(Path(data_dir), crop, stage_rng(seed, "train", "detector", "samples"))
+    net = build_model(width)
+    previous = None
+    if init is not None:  # continue an earlier run (its settings are kept in the record)
+        init = Path(init)
+        if not init.is_file():
+            raise InputError(f"--init {init} does not exist; give a detector.pt written by this command")
+        net.load_state_dict(torch.load(init, map_location="cpu"))
+        side = init.with_suffix(".json")
+        previous = json.loads(side.read_text()).get("training") if side.is_file() else None
+    opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
+    budget = minutes * 60.0
+    t0 = time.time()
+    curve, step, ema = [], 0, None
+    onnx_path = out / "detector.onnx"
+    while True:
+        el = time.time() - t0
+        frac = step / steps if steps else el / budget
+        if frac >= 1.0:
+            break
+        for g in opt.param_groups:  # short warm-up, then a cosine to 2 % of lr
+            g["lr"] = lr * min(1.0, (step + 1) / 100) * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * frac)))
+        xs, ts = [], []
+        for _ in range(batch):
+            im, bx = sampler.sample()
+            xs.append(im)
+            ts.append(make_targets(bx, crop))
+        x = torch.from_numpy(np.stack(xs)).permute(0, 3, 1, 2).float() / 255.0
+        heat, reg, wm, am = (torch.from_numpy(np.stack([t[k] for t in ts])) for k in range(4))
+        total, parts = losses(torch, net(x), heat, reg, wm, am)
+        opt.zero_grad()
+        total.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
+        opt.step()
+        step += 1
+        v = float(total.detach())
+        ema = v if ema is None else 0.98 * ema + 0.02 * v
+        if step % 50 == 0:
+            row = {"step": step, "s": round(time.time() - t0), "loss": round(ema, 4),
+                   **{k: round(float(p), 4) for k, p in parts.items()}, "images": len(sampler.items)}
+            curve.append(row)
+            print(json.dumps(row), flush=True)
+        if step % 200 == 0:
+            sampler.refresh()
+        if step % 500 == 0:
+            export_onnx(net, onnx_path)
+            torch.save(net.state_dict(), out / "detector.pt")
+    export_onnx(net, onnx_path)
+    torch.save(net.state_dict(), out / "detector.pt")
+    meta = {
+        "format": "coastforge.learned_detector/1",
+        "classes": list(CLASSES), "work_gsd_m": WORK_GSD_M, "stride": STRIDE,
+        "outputs": {"heat": "sigmoid centre heatmaps", "peaks": "heat at 3x3 local maxima, else 0",
+                    "reg": "offset(2) log(len/4) log(wid/4) cos2t sin2t cos t sin t"},
+        "training": {"seed": seed, "minutes": minutes, "steps": step, "batch": batch, "crop_px": crop,
+                     "lr": lr, "width": width, "threads": threads, "data": str(data_dir),
+                     "levels": len(sampler.items),
+                     "presets": sorted({it["preset"] for it in sampler.items}),
+                     "seeds": [min(it["seed"] for it in sampler.items), max(it["seed"] for it in sampler.items)],
+                     "params": int(sum(p.numel() for p in net.parameters())),
+                     "seconds": round(time.time() - t0, 1),
+                     "init": str(init) if init is not None else None, "previous": previous},
+        "curve": curve,
+    }
+    from ..fsio import atomic_write_text
+
+    atomic_write_text(out / "detector.json", json.dumps(meta, indent=1) + "\n")
+    return meta
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--minutes", type=float, default=25.0)
+    ap.add_argument("--steps", type=int, default=None)
+    ap.add_argument("--data", default=None, help="levels from coastforge.train.detector_data (else rendered)")
+    ap.add_argument("--batch", type=int, default=16)
+    ap.add_argument("--crop", type=int, default=160)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--lr", type=float, default=2e-3)
+    ap.add_argument("--init", default=None, help="start from this detector.pt (continue a run)")
+    a = ap.parse_args(argv)
+    train(a.out, a.seed, a.minutes, a.data, a.steps, a.batch, a.crop, lr=a.lr, threads=a.threads, init=a.init)
+
+
+if __name__ == "__main__":
+    main()

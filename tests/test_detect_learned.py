@@ -1,0 +1,153 @@
+"""The learned detector: decoding, training targets ↔ decoding, errors, and the shipped ONNX model."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from coastforge import frames
+from coastforge.config import DetectConfig
+from coastforge.errors import InputError
+from coastforge.types import GeoImage, Grid
+
+pytest.importorskip("onnxruntime")
+
+from coastforge.detection.learned import LearnedDetector, decode, default_weights  # noqa: E402
+
+
+def _maps(n=16, c=3):
+    return np.zeros((c, n, n), np.float32), np.zeros((8, n, n), np.float32)
+
+
+def _put(peaks, reg, cls, i, j, score, off, L, W, axis_deg, head_deg):
+    peaks[cls, i, j] = score
+    a, h = math.radians(axis_deg), math.radians(head_deg)
+    reg[:, i, j] = [off[0], off[1], math.log(L / 4), math.log(W / 4), math.cos(2 * a), math.sin(2 * a),
+                    math.cos(h), math.sin(h)]
+
+
+def test_decode_peak_to_box_and_heading():
+    peaks, reg = _maps()
+    _put(peaks, reg, 0, 5, 7, 0.9, (0.25, 0.75), 40.0, 12.0, 30.0, 30.0)  # front along the axis
+    _put(peaks, reg, 1, 10, 2, 0.8, (0.5, 0.5), 20.0, 8.0, 30.0, -150.0)  # front opposite: yaw = axis+180
+    _put(peaks, reg, 2, 12, 12, 0.2, (0.5, 0.5), 4.0, 4.0, 0.0, 0.0)  # below threshold
+    rows = decode(peaks, reg, threshold=0.3)
+    assert len(rows) == 2
+    rows = rows[np.argsort(-rows[:, 1])]
+    c, s, cx, cy, L, W, yaw, conf = rows[0]
+    assert (c, round(s, 3)) == (0, 0.9)
+    assert (cx, cy) == pytest.approx(((7 + 0.25) * 4, (5 + 0.75) * 4), abs=1e-4)
+    assert (L, W) == pytest.approx((40.0, 12.0), rel=1e-4)
+    assert yaw == pytest.approx(30.0, abs=1e-3) and conf == pytest.approx(1.0, abs=1e-4)
+    assert rows[1][6] == pytest.approx(-150.0, abs=1e-3)
+
+
+def test_decode_swaps_a_wide_box_and_checks_shapes():
+    peaks, reg = _maps()
+    _put(peaks, reg, 0, 3, 3, 0.9, (0.5, 0.5), 8.0, 20.0, 10.0, 10.0)
+    (_c, _s, _cx, _cy, L, W, yaw, conf), = decode(peaks, reg, 0.3)
+    assert (L, W) == pytest.approx((20.0, 8.0)) and yaw == pytest.approx(100.0, abs=1e-3)
+    assert conf == 0.5  # the front of a swapped box is unknown
+    with pytest.raises(InputError, match="expected"):
+        decode(peaks, reg[:5], 0.3)
+
+
+def test_training_targets_decode_back():
+    """What training asks the network for at a box decodes to that box (targets and decoder agree),
+    also after the rotation used as augmentation."""
+    import cv2
+
+    from coastforge.train.train_detector import affine_boxes, make_targets
+
+    box = np.array([[0, 61.3, 70.9, 36.0, 11.0, 57.0]])
+    M = cv2.getRotationMatrix2D((80.0, 80.0), 40.0, 1.1)
+    moved = affine_boxes(box, M, 1.1, 40.0)
+    # the rotated front direction is the image direction of the new yaw
+    fx, fy = frames.direction_px(57.0)
+    assert frames.yaw_from_direction_px(*(M[:, :2] @ [fx, fy])) == pytest.approx(moved[0, 5], abs=1e-6)
+    heat, reg, wmask, amask = make_targets(moved, 160)
+    pooled = cv2.dilate(heat.transpose(1, 2, 0), np.ones((3, 3), np.uint8)).transpose(2, 0, 1)
+    peaks = np.where(heat >= pooled, heat, 0)
+    rows = decode(peaks, reg, 0.99)
+    assert len(rows) == 1 and wmask.sum() >= 1 and amask.sum() == wmask.sum()
+    c, _s, cx, cy, L, W, yaw, _conf = rows[0]
+    assert (cx, cy) == pytest.approx(tuple(moved[0, 1:3]), abs=1e-3)
+    assert (L, W) == pytest.approx((36.0 * 1.1, 11.0 * 1.1), rel=1e-3)
+    assert yaw == pytest.approx(moved[0, 5], abs=1e-3)
+
+
+def test_missing_and_corrupt_weights(tmp_path):
+    with pytest.raises(InputError, match="do not exist"):
+        LearnedDetector(DetectConfig(), weights=tmp_path / "nope.onnx")
+    bad = tmp_path / "bad.onnx"
+    bad.write_bytes(b"this is not an onnx model")
+    with pytest.raises(InputError, match="bad.onnx"):
+        LearnedDetector(DetectConfig(), weights=bad)
+
+
+def test_foreign_onnx_is_refused(tmp_path):
+    onnx = pytest.importorskip("onnx")
+    from onnx import TensorProto, helper
+
+    g = helper.make_graph([helper.make_node("Identity", ["image"], ["out"])], "g",
+                          [helper.make_tensor_value_info("image", TensorProto.FLOAT, [1, 3, None, None])],
+                          [helper.make_tensor_value_info("out", TensorProto.FLOAT, [1, 3, None, None])])
+    p = tmp_path / "other.onnx"
+    onnx.save(helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)], ir_version=9), p)
+    with pytest.raises(InputError, match="backend onnx"):
+        LearnedDetector(DetectConfig(), weights=p)
+
+
+def test_shipped_model_is_small_and_documented():
+    import json
+
+    p = default_weights()
+    assert p.is_file() and p.stat().st_size < 5e6
+    meta = json.loads(p.with_suffix(".json").read_text())
+    assert meta["classes"] == ["boat", "vehicle", "buoy"] and meta["work_gsd_m"] > 0
+    assert meta["training"]["steps"] > 0 and min(meta["training"]["seeds"]) >= 100  # never the val seed 0
+
+
+@pytest.fixture(scope="module")
+def tiny_level():
+    from coastforge.synth import synthesize_level
+    from coastforge.synth_render import mesh_source, render_level
+
+    level = synthesize_level("simple_pier_a", 7, size_m=60)
+    rgb = render_level(level, mesh_source(None), 0.2, 7)
+    n = rgb.shape[0]
+    g = level.scene.extent_m[0] / n
+    return GeoImage(rgb=rgb, grid=Grid(n, n, g)), level.scene
+
+
+def test_shipped_model_finds_boats_on_a_generated_level(tiny_level):
+    from coastforge.detection import detect
+
+    img, scene = tiny_level
+    dets = detect(img, DetectConfig(), backend="learned")
+    boats = [o for o in scene.objects if o.category == "boat"]
+    assert boats
+    found, axis_err, front_ok = 0, [], 0
+    for o in boats:
+        col, row = img.grid.to_pixel(o.x_m, o.y_m)
+        near = [d for d in dets if d.category == "boat"
+                and math.hypot(d.cx_px - col, d.cy_px - row) < 0.5 * o.length_m / img.grid.gsd_m]
+        if near:
+            d = near[0]
+            found += 1
+            axis_err.append(abs(float(frames.wrap_half_deg(d.yaw_deg - o.yaw_deg))))
+            front_ok += abs(float(frames.wrap_deg(d.yaw_deg - o.yaw_deg))) < 90.0
+            assert 0.6 < d.length_px * img.grid.gsd_m / o.length_m < 1.6
+    assert found >= 0.75 * len(boats)
+    assert np.median(axis_err) < 10.0
+    assert front_ok >= 0.7 * found  # bow vs stern is learned
+    assert sum(d.category == "boat" for d in dets) <= len(boats) + 2  # few false boats
+
+
+def test_bad_gsd_is_refused(tiny_level):
+    img, _ = tiny_level
+    det = LearnedDetector(DetectConfig())
+    with pytest.raises(InputError, match="m/px"):
+        det.detect(GeoImage(rgb=img.rgb, grid=Grid(img.grid.width_px, img.grid.height_px, 8.0)), None, 0)
