@@ -76,6 +76,7 @@ class TerrainConfig:
 @dataclass(frozen=True)
 class DetectConfig:
     backend: str = "classical"
+    hybrid_union: bool = False  # hybrid backend: also keep classical boats no learned box overlaps
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0
     min_vehicle_length_m: float = 3.0

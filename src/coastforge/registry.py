@@ -47,6 +47,8 @@ BACKENDS: tuple[BackendSpec, ...] = (
     # detection
     BackendSpec("detect", "classical", _P + "detection.classical:ClassicalDetector", (), None, "",
                 "boats, vehicles and piers from colour, contrast and shape; heading from silhouette", True),
+    BackendSpec("detect", "hybrid", _P + "detection.hybrid:HybridDetector", ("onnxruntime",), None, "",
+                "learned boats/vehicles/buoys + classical piers (the generate default)"),
     BackendSpec("detect", "learned", _P + "detection.learned:LearnedDetector", ("onnxruntime",), None, "",
                 "coastforge's own small network trained on synthetic renders (ONNX, shipped)"),
     BackendSpec("detect", "yolo", _P + "detection.yolo:YoloDetector", ("ultralytics", "torch"), "yolo",
