@@ -211,7 +211,8 @@ def test_cli_detect(tmp_path, scene):
     write_png(src, image.rgb)
     out = tmp_path / "dets.json"
     ov = tmp_path / "ov.png"
-    r = CliRunner().invoke(cli, ["detect", str(src), "--gsd", "0.2", "--out", str(out), "--overlay", str(ov)])
+    r = CliRunner().invoke(cli, ["detect", str(src), "--gsd", "0.2", "--out", str(out), "--overlay", str(ov),
+                                 "--backend", "classical"])
     assert r.exit_code == 0, r.output
     assert "boat" in r.output and out.is_file() and ov.is_file()
     dets, header = detections_from_json(out)
