@@ -133,13 +133,7 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
     if not piers:
         return {"n_segments": 0, "n_structures": 0, "segments_connected": None, "structures_on_land": None,
                 "all_connected": None}
-    polys = []
-    for o in piers:
-        r = np.deg2rad(o.yaw_deg)
-        f = np.array([np.cos(r), np.sin(r)]) * o.length_m / 2
-        lft = np.array([-np.sin(r), np.cos(r)]) * o.width_m / 2
-        c = np.array([o.x_m, o.y_m])
-        polys.append(Polygon([c + f + lft, c - f + lft, c - f - lft, c + f - lft]))
+    polys = [Polygon(o.footprint_m()) for o in piers]
     n = len(piers)
     adj = [[j for j in range(n) if j != i and polys[i].distance(polys[j]) <= tol_m] for i in range(n)]
     on_land = [_touches_land(scene, p.buffer(tol_m)) for p in polys]

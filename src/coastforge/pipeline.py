@@ -125,12 +125,54 @@ def _pier_assets(library):
     return walk, finger
 
 
+def place_decisions(decisions, dets: list[Detection], library, grid, config: Config, height) -> list:
+    """Scene objects for the matched detections, ids numbered per category (``boat_000``, ...)."""
+    from .placement import place
+
+    assets = {a.id: a for a in library.assets}
+    objects = []
+    counters: dict[str, int] = {}
+    for dec in decisions:
+        d = dets[dec.index]
+        k = counters.get(d.category, 0)
+        counters[d.category] = k + 1
+        objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
+                             water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
+                             attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4),
+                                    "match": dec.index}))
+    return objects
+
+
+def assets_by_category(library) -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    for a in library.assets:
+        out.setdefault(a.category, []).append(a.id)
+    return out
+
+
+def scene_provenance(req: GenerateRequest, config: Config, library, gsd_m: float, size_px: tuple[int, int], dets,
+                     objects, vegetation, pier_report: dict, decisions, **extra) -> dict:
+    """What made a scene: tool, command, seed, input, library, backends, config, counts, decisions."""
+    return {
+        "tool": "coastforge", "version": __version__, "command": req.command, "seed": config.seed,
+        "input": {"image": str(req.image), "gsd_m": gsd_m, "size_px": list(size_px)},
+        **extra,
+        "library": str(req.library) if req.library else "starter-kit",
+        "backends": {"segment": config.segment.backend, "terrain": config.terrain.backend,
+                     "detect": config.detect.backend, "embedder": getattr(library.embedder, "name", "?")},
+        "config": config.to_dict(),
+        "counts": {"detections": len(dets), "objects": len(objects), "vegetation": len(vegetation)},
+        "piers": pier_report,
+        "matches": [m.to_dict() for m in decisions],
+        "python": sys.version.split()[0], "platform": platform.platform(),
+    }
+
+
 def run_generate(req: GenerateRequest, config: Config, progress: Progress | None = None) -> GenerateResult:
     from .detection import detect
     from .io import read_image
     from .matching import match_detections
     from .piers import build_piers
-    from .placement import place
     from .segmentation import segment
     from .terrain import estimate_terrain
     from .types import HeightMap
@@ -160,17 +202,7 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         height: HeightMap = terrain.height
     with timer.stage("match"):
         decisions = match_detections(image, dets, library, config.match, seed)
-        assets = {a.id: a for a in library.assets}
-        objects = []
-        counters: dict[str, int] = {}
-        for dec in decisions:
-            d = dets[dec.index]
-            k = counters.get(d.category, 0)
-            counters[d.category] = k + 1
-            objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
-                                 water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
-                                 attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4),
-                                        "match": dec.index}))
+        objects = place_decisions(decisions, dets, library, grid, config, height)
     with timer.stage("piers"):
         walk, finger = _pier_assets(library)
         pier_report: dict = {"n_structures": 0}
@@ -179,27 +211,14 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
             objects.extend(pr.objects)
             pier_report = pr.report
     with timer.stage("vegetation"):
-        by_cat: dict[str, list[str]] = {}
-        for a in library.assets:
-            by_cat.setdefault(a.category, []).append(a.id)
-        veg = scatter(class_map.ids, height.z_m, grid, by_cat, objects, config.vegetation, seed)
+        veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library), objects, config.vegetation, seed)
     with timer.stage("write"):
         scene = Scene(
             name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
             crs=grid.crs, transform=grid.transform, height=height.z_m.astype(np.float32),
             classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
-            provenance={
-                "tool": "coastforge", "version": __version__, "command": req.command, "seed": seed,
-                "input": {"image": str(req.image), "gsd_m": grid.gsd_m, "size_px": [grid.width_px, grid.height_px]},
-                "library": str(req.library) if req.library else "starter-kit",
-                "backends": {"segment": config.segment.backend, "terrain": config.terrain.backend,
-                             "detect": config.detect.backend, "embedder": getattr(library.embedder, "name", "?")},
-                "config": config.to_dict(),
-                "counts": {"detections": len(dets), "objects": len(objects), "vegetation": len(veg.vegetation)},
-                "piers": pier_report,
-                "matches": [m.to_dict() for m in decisions],
-                "python": sys.version.split()[0], "platform": platform.platform(),
-            })
+            provenance=scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets,
+                                        objects, veg.vegetation, pier_report, decisions))
         _write_stage_outputs(out, image, cleaned, class_map, dets, terrain, veg)
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)

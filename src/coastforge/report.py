@@ -522,13 +522,7 @@ def _terrain_section(scene: Scene, scene_dir: Path) -> str:
 def _pier_graph(piers: list[SceneObject], tol_m: float = 0.5):
     from shapely.geometry import Polygon
 
-    polys = []
-    for o in piers:
-        r = np.deg2rad(o.yaw_deg)
-        f = np.array([np.cos(r), np.sin(r)]) * o.length_m / 2
-        lft = np.array([-np.sin(r), np.cos(r)]) * o.width_m / 2
-        c = np.array([o.x_m, o.y_m])
-        polys.append(np.array([c + f + lft, c - f + lft, c - f - lft, c + f - lft]))
+    polys = [o.footprint_m() for o in piers]
     shp = [Polygon(p) for p in polys]
     n = len(shp)
     edges = [(i, j) for i in range(n) for j in range(i + 1, n) if shp[i].distance(shp[j]) <= tol_m]

@@ -43,6 +43,15 @@ class SceneObject:
     score: float = 1.0
     attrs: dict = field(default_factory=dict, compare=False)  # stage-specific extras (kept on round trip)
 
+    def footprint_m(self, grow_m: float = 0.0) -> np.ndarray:
+        """The 4 (x, y) corners of the object's rectangle in scene metres: front-left, rear-left, rear-right,
+        front-right (``grow_m`` enlarges it on every side)."""
+        r = np.deg2rad(self.yaw_deg)
+        f = np.array([np.cos(r), np.sin(r)]) * (self.length_m / 2 + grow_m)
+        left = np.array([-np.sin(r), np.cos(r)]) * (self.width_m / 2 + grow_m)
+        c = np.array([self.x_m, self.y_m])
+        return np.array([c + f + left, c - f + left, c - f - left, c + f - left])
+
 
 @dataclass(frozen=True, eq=False)
 class Vegetation:

@@ -571,14 +571,10 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     """``run_generate`` for images too large to hold: read by windows, segment and detect per tile at full
     resolution, then terrain, matching, piers and vegetation on a scene grid of at most ``scene_max_px`` per
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
-    import platform
-    import sys
-
-    from . import __version__
     from .detection import detections_to_json
     from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .pipeline import GenerateResult, _pier_assets, _load_library, _Timer, fill_under_objects
-    from .placement import place
+    from .pipeline import (GenerateResult, _load_library, _pier_assets, _Timer, assets_by_category,
+                           fill_under_objects, place_decisions, scene_provenance)
     from .scene import Scene, save_scene
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
@@ -622,15 +618,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         height: HeightMap = terrain.height
     with timer.stage("match"):
         decisions = _match_tiled(src, dets, library, config, tile_px)
-        assets = {a.id: a for a in library.assets}
-        objects, counters = [], {}
-        for dec in decisions:
-            d = dets[dec.index]
-            k = counters.get(d.category, 0)
-            counters[d.category] = k + 1
-            objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
-                                 water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
-                                 attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4)}))
+        objects = place_decisions(decisions, dets, library, grid, config, height)
     with timer.stage("piers"):
         walk, finger = _pier_assets(library)
         pier_report: dict = {"n_structures": 0}
@@ -638,30 +626,17 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
             pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
             objects.extend(pier_objects)
     with timer.stage("vegetation"):
-        by_cat: dict[str, list[str]] = {}
-        for a in library.assets:
-            by_cat.setdefault(a.category, []).append(a.id)
-        veg = scatter(class_map.ids, height.z_m, sgrid, by_cat, objects, config.vegetation, seed)
+        veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library), objects, config.vegetation, seed)
     with timer.stage("write"):
         scene = Scene(
             name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
             # the transform is the scene rasters' (coarser than the input when the image was downsampled)
             crs=grid.crs, transform=sgrid.transform, height=height.z_m.astype(np.float32),
             classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
-            provenance={
-                "tool": "coastforge", "version": __version__, "command": req.command, "seed": seed,
-                "input": {"image": str(req.image), "gsd_m": grid.gsd_m, "size_px": [W, H]},
-                "tiled": {"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
-                          "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m},
-                "library": str(req.library) if req.library else "starter-kit",
-                "backends": {"segment": config.segment.backend, "terrain": config.terrain.backend,
-                             "detect": config.detect.backend, "embedder": getattr(library.embedder, "name", "?")},
-                "config": config.to_dict(),
-                "counts": {"detections": len(dets), "objects": len(objects), "vegetation": len(veg.vegetation)},
-                "piers": pier_report,
-                "matches": [m.to_dict() for m in decisions],
-                "python": sys.version.split()[0], "platform": platform.platform(),
-            })
+            provenance=scene_provenance(
+                req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
+                tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
+                       "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m}))
         write_png(out / "cleaned.png", cleaned)
         write_segmentation(out / "segmentation", class_map, overview, config.segment)
         atomic_write_text(out / "detections.json",

@@ -59,11 +59,7 @@ def footprint_mask(objects, grid: Grid, margin_m: float) -> np.ndarray:
 
     mask = np.zeros(grid.shape, np.uint8)
     for o in objects:
-        r = np.deg2rad(o.yaw_deg)
-        u, n = np.array([np.cos(r), np.sin(r)]), np.array([-np.sin(r), np.cos(r)])
-        hl, hw = o.length_m / 2 + margin_m, o.width_m / 2 + margin_m
-        c = np.array([o.x_m, o.y_m])
-        pts = np.array([c + u * hl + n * hw, c - u * hl + n * hw, c - u * hl - n * hw, c + u * hl - n * hw])
+        pts = o.footprint_m(grow_m=margin_m)
         col, row = grid.to_pixel(pts[:, 0], pts[:, 1])
         cv2.fillPoly(mask, [np.round(np.stack([col, row], 1)).astype(np.int32)], 1)
     return mask.astype(bool)

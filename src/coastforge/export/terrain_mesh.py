@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fsio import png_bytes  # noqa: F401  (the exporters import it from here)
+
 from ..classes import N_CLASSES, PALETTE, WATER
 
 
@@ -163,23 +165,6 @@ def weights_to_u8(w: np.ndarray) -> np.ndarray:
     top = np.argmax(w, axis=0)
     np.put_along_axis(base, top[None], np.take_along_axis(base, top[None], 0) + rem[None], axis=0)
     return base.astype(np.uint8)
-
-
-def png_bytes(a: np.ndarray) -> bytes:
-    """uint8/uint16 gray, RGB or RGBA array (RGB order) → PNG bytes."""
-    import cv2
-
-    a = np.ascontiguousarray(a)
-    if a.dtype not in (np.uint8, np.uint16):
-        raise TypeError(f"PNG needs uint8 or uint16, got {a.dtype}")
-    if a.ndim == 3 and a.shape[2] == 3:
-        a = a[:, :, ::-1]
-    elif a.ndim == 3 and a.shape[2] == 4:
-        a = a[:, :, [2, 1, 0, 3]]
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(a), [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    if not ok:  # pragma: no cover - cv2 fails only on impossible shapes
-        raise OSError("could not encode PNG")
-    return buf.tobytes()
 
 
 def terrain_image(scene, texture: np.ndarray | None, max_px: int) -> np.ndarray:
