@@ -53,6 +53,22 @@ def test_wraparound_at_180():
     assert m.orientation_rmse_deg == pytest.approx(2.0)
 
 
+def test_round_buoy_yaw_does_not_count_but_position_does():
+    import dataclasses
+
+    buoy = dataclasses.replace(obj(1, 30, 0, 40, cat="buoy", asset="buoy", length=1.0, width=1.0),
+                               attrs={"symmetry": "rotational"})
+    t = [obj(0, 0, 0, 10), buoy]
+    p = [obj(0, 0, 0, 12), dataclasses.replace(buoy, x_m=30.3, y_m=0.4, yaw_deg=-95.0, attrs={})]
+    m = object_metrics(t, p)
+    assert m.n_matched == 2 and m.n_yaw == 1
+    assert m.rotation_rmse_deg == pytest.approx(2.0) and m.orientation_rmse_deg == pytest.approx(2.0)
+    assert m.xy_rmse_m == pytest.approx(math.sqrt(0.25 / 2))
+    # the same buoy without the mark: its 135 degree error counts
+    m = object_metrics([t[0], dataclasses.replace(buoy, attrs={})], p)
+    assert m.n_yaw == 2 and m.rotation_rmse_deg == pytest.approx(math.sqrt((4 + 135 ** 2) / 2))
+
+
 def test_missing_objects_and_false_positives():
     t = [obj(i, 10 * i, 0, 0) for i in range(4)]
     p = [obj(0, 0, 0, 0), obj(1, 10, 0, 0), obj(9, -40, -40, 0), obj(8, 40, 40, 0), obj(7, 30, 30, 0)]

@@ -3,6 +3,10 @@
 Objects: truth and predictions are matched one-to-one by the Hungarian assignment on centre distance,
 with a gate of max(2 m, half the truth object's length). Only boats, vehicles and buoys count; pier
 segments are checked for connectivity instead. Undefined figures (no matched pairs) are ``None``.
+
+A truth object marked ``attrs["symmetry"] == "rotational"`` (a round buoy) looks the same at every yaw, so
+its yaw error is undefined: it counts for XY, recall and precision but not for the rotation and orientation
+RMSE (``n_yaw`` says how many pairs those use).
 """
 
 from __future__ import annotations
@@ -37,12 +41,13 @@ class ObjectMetrics:
     match_precision: float | None
     match_precision_category: float | None
     detection_precision: float | None
+    n_yaw: int = 0  # matched pairs whose yaw error is defined (see the module docstring)
     matches: tuple[Match, ...] = field(default=(), repr=False)
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in (
             "n_truth", "n_pred", "n_matched", "xy_rmse_m", "rotation_rmse_deg", "orientation_rmse_deg", "recall",
-            "match_precision", "match_precision_category", "detection_precision")}
+            "match_precision", "match_precision_category", "detection_precision", "n_yaw")}
 
 
 def match_objects(truth: list[SceneObject], pred: list[SceneObject]) -> list[Match]:
@@ -61,6 +66,11 @@ def match_objects(truth: list[SceneObject], pred: list[SceneObject]) -> list[Mat
     return [Match(truth[i], pred[j], float(d[i, j])) for i, j in zip(rows, cols) if cost[i, j] < big]
 
 
+def is_yaw_symmetric(obj: SceneObject) -> bool:
+    """True when the truth object is marked rotationally symmetric (its yaw carries no information)."""
+    return str(obj.attrs.get("symmetry", "")).lower() == "rotational"
+
+
 def _rmse(values: list[float]) -> float | None:
     return float(np.sqrt(np.mean(np.square(values)))) if values else None
 
@@ -69,8 +79,9 @@ def object_metrics(truth: list[SceneObject], pred: list[SceneObject]) -> ObjectM
     matches = match_objects(truth, pred)
     n_t, n_p, n_m = len(truth), len(pred), len(matches)
     xy = [m.distance_m for m in matches]
-    rot = [float(wrap_deg(m.pred.yaw_deg - m.truth.yaw_deg)) for m in matches]
-    ori = [float(wrap_half_deg(m.pred.yaw_deg - m.truth.yaw_deg)) for m in matches]
+    oriented = [m for m in matches if not is_yaw_symmetric(m.truth)]
+    rot = [float(wrap_deg(m.pred.yaw_deg - m.truth.yaw_deg)) for m in oriented]
+    ori = [float(wrap_half_deg(m.pred.yaw_deg - m.truth.yaw_deg)) for m in oriented]
     same_asset = sum(m.pred.asset_id == m.truth.asset_id for m in matches)
     same_cat = sum(m.pred.category == m.truth.category for m in matches)
     return ObjectMetrics(
@@ -78,7 +89,7 @@ def object_metrics(truth: list[SceneObject], pred: list[SceneObject]) -> ObjectM
         orientation_rmse_deg=_rmse(ori), recall=n_m / n_t if n_t else None,
         match_precision=same_asset / n_m if n_m else None,
         match_precision_category=same_cat / n_m if n_m else None,
-        detection_precision=n_m / n_p if n_p else None, matches=tuple(matches),
+        detection_precision=n_m / n_p if n_p else None, n_yaw=len(oriented), matches=tuple(matches),
     )
 
 

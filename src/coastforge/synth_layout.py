@@ -500,7 +500,9 @@ def add_buoy(layout: Layout, rng: np.random.Generator, u: float, v: float,
     fp = obox(u, v, d.length_m * sc, d.width_m * sc, 0.0)
     if not (layout.in_scene(fp, 1.0) and layout.on_water(fp, 1.0) and layout.is_free(fp, 0.8)):
         return None
-    return layout.add_object("buoy", "buoy", "buoy", u, v, float(rng.uniform(-179, 180)), sc, "water", attrs)
+    # a buoy looks the same from every side: its yaw is arbitrary, and the truth says so (evaluate.py)
+    return layout.add_object("buoy", "buoy", "buoy", u, v, float(rng.uniform(-179, 180)), sc, "water",
+                             {**attrs, "symmetry": "rotational"})
 
 
 def add_underway(layout: Layout, rng: np.random.Generator, count: int, types: tuple[str, ...]) -> None:
