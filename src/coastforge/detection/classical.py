@@ -213,11 +213,15 @@ class ClassicalDetector:
 
     # ------------------------------------------------------------------------------------ water
     def water_mask(self, lab: np.ndarray, gsd: float, class_map: ClassMap | None) -> np.ndarray:
-        import cv2
-
         shape = lab.shape[:2]
         if class_map is not None:
             return _resize(class_map.ids, shape, nearest=True) == WATER
+        return self._photometric_water(lab, gsd)
+
+    def _photometric_water(self, lab: np.ndarray, gsd: float) -> np.ndarray:
+        """Smooth, water-coloured, not bright, in large connected areas."""
+        import cv2
+
         L, a, b = lab[..., 0], lab[..., 1], lab[..., 2]
         cfg_chroma = self.config.water_min_chroma
         k = max(3, int(round(1.5 / gsd)) | 1)
@@ -279,6 +283,14 @@ class ClassicalDetector:
 
         cfg = self.config
         wmodel, _wsupport = _smooth_masked(lab, water0.astype(np.float32), cfg.water_model_m / gsd)
+        # a class map calls the water under boats and piers water (it is the terrain there): in a dense
+        # marina the model then learns the boats' colour and the piers between them vanish. Refit once
+        # on the pixels that look like the first model's water.
+        out1 = (lab[..., 0] - wmodel[..., 0] > cfg.struct_dl) | (
+            np.hypot(lab[..., 1] - wmodel[..., 1], lab[..., 2] - wmodel[..., 2]) > cfg.struct_dc)
+        support = water0 & ~out1
+        if support.sum() >= 0.5 * water0.sum():
+            wmodel, _wsupport = _smooth_masked(lab, support.astype(np.float32), cfg.water_model_m / gsd)
         dL = lab[..., 0] - wmodel[..., 0]
         dc = np.hypot(lab[..., 1] - wmodel[..., 1], lab[..., 2] - wmodel[..., 2])
         dist_w = cv2.distanceTransform((~water0).astype(np.uint8), cv2.DIST_L2, 3) * gsd
