@@ -17,6 +17,7 @@ from .scene import SceneObject
 from .types import Detection, Grid, HeightMap
 
 FLOATING_CATEGORIES = ("boat", "buoy")
+DRY_MARGIN_M = 0.3  # terrain this far above the water under a boat's centre means the boat is ashore
 
 
 class AssetLike(Protocol):
@@ -61,6 +62,20 @@ def ground_height(height: HeightMap | None, grid: Grid, x_m: float, y_m: float, 
     return float(np.max(height.z_m[r0:r1, c0:c1]))
 
 
+def centre_height(height: HeightMap | None, grid: Grid, x_m: float, y_m: float, radius_m: float) -> float | None:
+    """Median terrain height in a small disc at the object's centre (None without a height map or outside it)."""
+    if height is None:
+        return None
+    hg = height.grid
+    col, row = hg.to_pixel(x_m, y_m)
+    r = max(0, int(np.ceil(radius_m / hg.gsd_m)))
+    c0, c1 = int(max(0, np.floor(col) - r)), int(min(hg.width_px, np.floor(col) + r + 1))
+    r0, r1 = int(max(0, np.floor(row) - r)), int(min(hg.height_px, np.floor(row) + r + 1))
+    if c1 <= c0 or r1 <= r0:
+        return None
+    return float(np.median(height.z_m[r0:r1, c0:c1]))
+
+
 def place(det: Detection, asset: AssetLike, grid: Grid, object_id: str, config: MatchConfig,
           height: HeightMap | None = None, water_level_m: float = 0.0, yaw_deg: float | None = None,
           score: float | None = None, attrs: dict | None = None) -> SceneObject:
@@ -69,13 +84,20 @@ def place(det: Detection, asset: AssetLike, grid: Grid, object_id: str, config: 
     x, y, length, width = box_in_metres(det, grid)
     scale = fit_scale(length, width, asset.dims_m, config)
     category = "boat" if asset.category == "boat" else asset.category
+    attrs = dict(attrs or {})
     if asset.floating or asset.category in FLOATING_CATEGORIES:
         z = water_level_m  # meshes are normalised with z = 0 at their waterline
+        ground = centre_height(height, grid, x, y, radius_m=min(length, width) / 4)
+        if ground is not None and ground > water_level_m + DRY_MARGIN_M:
+            # a boat ashore (boatyard, trailer, slipway) rests on the ground, hull and all; the centre
+            # decides, so a boat moored against a quay wall stays afloat
+            z = ground + float(getattr(asset, "draft_m", 0.0) or 0.0)
+            attrs["ashore"] = True
     else:
         z = ground_height(height, grid, x, y, radius_m=min(length, width) / 2)
     yaw = float(wrap_deg(det.yaw_deg if yaw_deg is None else yaw_deg))
     return SceneObject(
         id=object_id, category=category, asset_id=asset.id, x_m=x, y_m=y, z_m=float(z), yaw_deg=yaw,
         scale=scale, length_m=float(asset.dims_m[0] * scale[0]), width_m=float(asset.dims_m[1] * scale[1]),
-        source="detection", score=float(det.score if score is None else score), attrs=dict(attrs or {}),
+        source="detection", score=float(det.score if score is None else score), attrs=attrs,
     )
