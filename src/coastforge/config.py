@@ -46,6 +46,10 @@ class SegmentConfig:
     vehicle_area_max_m2: float = 400.0  # blobs up to this size enclosed by asphalt become asphalt (parked cars)
     biome_shore_m: float = 15.0  # biome map: land this close to the waterline is "shore"
     biome_shallow_m: float = 20.0  # biome map: water this close to land is "shallow" (seaweed)
+    learned_water: str = "classical"  # learned backend: water from the "classical" water model or the "net"
+    learned_min_agreement: float = 0.7  # learned backend: below this agreement with the colour rules, use classical
+    learned_flips: int = 2  # learned backend: test-time flips averaged (1 = none, 2 = + mirror, up to 4)
+    learned_min_region_m2: float = 12.0  # learned backend: smaller land specks join their surroundings
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,7 @@ class DetectConfig:
     slice_px: int = 1024
     slice_overlap_px: int = 128
     nms_iou: float = 0.3
+    refine: bool = True  # fit boat/vehicle/buoy boxes to the object's symmetry axis and silhouette
     # classical backend (lengths in metres; colour differences in Lab units)
     work_gsd_m: float = 0.15  # finer images are downsampled to this for speed
     min_water_area_m2: float = 400.0
@@ -152,6 +157,19 @@ class MatchConfig:
     scale_mode: str = "uniform"  # uniform | per_axis
     scale_min: float = 0.5
     scale_max: float = 2.0
+    # shape re-ranking: the crop against each candidate's top views at metric scale (paint-invariant
+    # orientation fields, searched over scale, shift and both headings); weights tuned on synthetic levels
+    shape: bool = True
+    shape_appearance_weight: float = 0.2  # the embedding's cosine added to the shape correlation
+    shape_scale_weight: float = 0.02  # log-normal prior on an instance's size against the asset's
+    shape_scale_sigma_boat: float = 0.15  # boats of one type vary in size ...
+    shape_scale_sigma_vehicle: float = 0.05  # ... cars of one model hardly do
+    shape_scale_sigma_buoy: float = 0.1
+    shape_length_weight: float = 0.02  # the detected length against the fitted asset's
+    shape_length_sigma: float = 0.15
+    shape_width_weight: float = 0.02
+    shape_width_sigma: float = 0.35
+    heading_prior_weight: float = 0.05  # x logit(detector heading confidence), against the shape's heading
 
 
 @dataclass(frozen=True)

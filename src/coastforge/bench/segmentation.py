@@ -1,11 +1,14 @@
-"""Segmentation benchmark: ``python -m coastforge.bench.segmentation [--only marina|synth|speed]``.
+"""Segmentation benchmark: ``python -m coastforge.bench.segmentation [--only marina|synth|speed]
+[--backend classical|learned|...] [--weights F] [--cache DIR]``.
 
 Prints the figures of the segmentation issue:
 
 - real marina (DOTA crop in ../shared/data): mIoU and water IoU against the hand-drawn polygons in
   ``tests/data/marina_p0861_classes.json``;
 - synthetic levels (``coastforge.synth``, when installed): mIoU per class at each rendered resolution;
-- speed: classical segmentation of a 2048 x 2048 image (wall time; the machine may be shared).
+- speed: segmentation of a 2048 x 2048 image made of the real marina (wall time; the machine may be
+  shared); for ``learned`` that is its slowest path (the self-check rejects the network on this photo,
+  so the classical segmenter runs as well).
 """
 
 from __future__ import annotations
@@ -82,7 +85,7 @@ def _fmt(res: dict) -> str:
     return f"mIoU {res['miou']:.3f}  acc {res['accuracy']:.3f}  | " + " ".join(parts)
 
 
-def bench_marina(backend: str = "classical", save_preview: Path | None = None) -> dict | None:
+def bench_marina(backend: str = "classical", save_preview: Path | None = None, **options) -> dict | None:
     from ..config import SegmentConfig
     from ..io import read_image
     from ..segmentation import segment
@@ -94,7 +97,7 @@ def bench_marina(backend: str = "classical", save_preview: Path | None = None) -
     spec = json.loads(MARINA_TRUTH.read_text(encoding="utf-8"))
     image = read_image(img_path, gsd_m=float(spec["gsd_m"]))
     t0 = time.perf_counter()
-    cm = segment(image, SegmentConfig(backend=backend))
+    cm = segment(image, SegmentConfig(backend=backend), **options)
     dt = time.perf_counter() - t0
     truth = rasterize_polygons(spec, cm.ids.shape)
     res = class_ious(cm.ids, truth)
@@ -147,7 +150,7 @@ SYNTH_PRESETS = ("marina", "beach", "rocky_shore", "lake_harbor", "pier_parking"
 
 
 def bench_synth(backend: str = "classical", presets: tuple[str, ...] = SYNTH_PRESETS, seeds: tuple[int, ...] = (1,),
-                gsds: tuple[float, ...] = (0.1, 0.2), cache: Path | None = None) -> dict | None:
+                gsds: tuple[float, ...] = (0.1, 0.2), cache: Path | None = None, **options) -> dict | None:
     import importlib.util
     import tempfile
 
@@ -165,7 +168,7 @@ def bench_synth(backend: str = "classical", presets: tuple[str, ...] = SYNTH_PRE
         root = Path(cache) if cache is not None else Path(tmp)
         for name, path, gsd, truth in _synth_cases(root, presets, seeds, gsds):
             image = read_image(path, gsd_m=gsd)
-            cm = segment(image, SegmentConfig(backend=backend))
+            cm = segment(image, SegmentConfig(backend=backend), **options)
             t = cv2.resize(truth, (cm.ids.shape[1], cm.ids.shape[0]), interpolation=cv2.INTER_NEAREST)
             res = class_ious(cm.ids, t)
             print(f"synthetic {name} @ {gsd:g} m/px: {_fmt(res)}")
@@ -187,11 +190,11 @@ def bench_synth(backend: str = "classical", presets: tuple[str, ...] = SYNTH_PRE
     return summary
 
 
-def bench_speed(size: int = 2048, repeats: int = 2) -> float:
-    """Classical segmentation of a size x size image built from the marina crop (tiled and mirrored, so it
+def bench_speed(size: int = 2048, repeats: int = 2, backend: str = "classical", **options) -> float:
+    """Segmentation (``backend``) of a size x size image built from the marina crop (tiled and mirrored, so it
     holds real content), or a synthetic pattern when the shared data is absent."""
+    from .. import registry
     from ..config import SegmentConfig
-    from ..segmentation.classical import ClassicalSegmenter
     from ..types import GeoImage, Grid
 
     img_path = SHARED / "aerial" / "marina_p0861" / "image.jpg"
@@ -207,7 +210,7 @@ def bench_speed(size: int = 2048, repeats: int = 2) -> float:
         rng = np.random.default_rng(0)
         rgb = rng.integers(0, 255, (size, size, 3), dtype=np.uint8)
     image = GeoImage(rgb=rgb, grid=Grid(size, size, 0.1))
-    seg = ClassicalSegmenter(SegmentConfig())
+    seg = registry.load("segment", backend)(SegmentConfig(backend=backend), **options)
     seg.segment(image, 0)  # warm-up: imports and first-call allocations are not the algorithm
     times, cpus = [], []
     for _ in range(repeats):
@@ -219,7 +222,7 @@ def bench_speed(size: int = 2048, repeats: int = 2) -> float:
     import os
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"speed: classical {size}x{size} @ 0.1 m/px: best wall {best:.2f} s of {repeats}, CPU {min(cpus):.2f} s "
+    print(f"speed: {backend} {size}x{size} @ 0.1 m/px: best wall {best:.2f} s of {repeats}, CPU {min(cpus):.2f} s "
           f"(target <= 3 s on 2 cores; load average {load:.1f} while measuring)")
     return best
 
@@ -229,18 +232,20 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--only", choices=("marina", "synth", "speed"), action="append")
     ap.add_argument("--backend", default="classical")
     ap.add_argument("--preview", type=Path, default=None, help="write the marina colour preview here")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[1])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--weights", type=Path, default=None, help="model file for the learned/onnx backends")
     ap.add_argument("--presets", nargs="+", default=list(SYNTH_PRESETS))
     ap.add_argument("--cache", type=Path, default=None,
                     help="keep (and reuse) the synthetic levels in this folder; rendering them is the slow part")
     args = ap.parse_args(argv)
     which = set(args.only or ("marina", "synth", "speed"))
+    opts = {"weights": args.weights} if args.weights is not None else {}
     if "marina" in which:
-        bench_marina(args.backend, args.preview)
+        bench_marina(args.backend, args.preview, **opts)
     if "synth" in which:
-        bench_synth(args.backend, tuple(args.presets), tuple(args.seeds), cache=args.cache)
+        bench_synth(args.backend, tuple(args.presets), tuple(args.seeds), cache=args.cache, **opts)
     if "speed" in which:
-        bench_speed()
+        bench_speed(backend=args.backend, **opts)
 
 
 if __name__ == "__main__":

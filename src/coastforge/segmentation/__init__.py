@@ -1,7 +1,9 @@
 """Terrain segmentation into the eight classes of DESIGN.md §2, and cleaning of transient objects.
 
-Backends (``coastforge.registry``, stage ``segment``): ``classical`` (default, no weights), ``labels``
-(the user's own class raster), ``onnx`` (any ONNX segmentation model), ``gemini`` (the paper's method).
+Backends (``coastforge.registry``, stage ``segment``): ``classical`` (no weights, any GSD), ``learned``
+(a small U-Net trained by coastforge on its own renders, shipped as ONNX; classical outside 0.04-0.6 m/px),
+``labels`` (the user's own class raster), ``onnx`` (any ONNX segmentation model), ``gemini`` (the
+paper's method).
 Each is a class built as ``Backend(config: SegmentConfig, **backend_options)`` with
 ``segment(image: GeoImage, seed: int) -> ClassMap`` (uint8 ids on the image grid).
 """

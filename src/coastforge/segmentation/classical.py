@@ -532,12 +532,15 @@ class ClassicalSegmenter:
             s *= math.sqrt(cfg.max_work_px / n)
         return s
 
-    def segment_small(self, rgb: np.ndarray, gsd_m: float, seed: int):
+    def segment_small(self, rgb: np.ndarray, gsd_m: float, seed: int, pre: tuple | None = None):
         """Class ids, water mask, features and open-water mask at the resolution of ``rgb`` (the
-        working resolution)."""
+        working resolution). ``pre`` = (features, water, open water) already computed for ``rgb``."""
         cfg = self.config
-        F = compute_features(rgb, gsd_m)
-        water, open_water = detect_water(F, cfg, return_open=True)
+        if pre is not None:
+            F, water, open_water = pre
+        else:
+            F = compute_features(rgb, gsd_m)
+            water, open_water = detect_water(F, cfg, return_open=True)
         seeds = land_seeds(F, water, cfg.rocks_shore_m)
         h, w = water.shape
         land = ~water
@@ -585,7 +588,8 @@ class ClassicalSegmenter:
         _d, (ri, ci) = ndi.distance_transform_edt(~known, return_indices=True)
         return seeds[ri, ci].astype(np.uint8)[land]
 
-    def segment(self, image: GeoImage, seed: int = 0) -> ClassMap:
+    def segment(self, image: GeoImage, seed: int = 0, pre: tuple | None = None) -> ClassMap:
+        """``pre``: (features, water, open water) at the working resolution, when the caller has them."""
         rgb = image.rgb
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise InputError(f"classical segmentation needs an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
@@ -598,7 +602,7 @@ class ClassicalSegmenter:
         else:
             w, h, small = W, H, rgb
         gsd_w = g.gsd_m * W / w
-        ids, water, F, open_water = self.segment_small(small, gsd_w, seed)
+        ids, water, F, open_water = self.segment_small(small, gsd_w, seed, pre)
         if (w, h) != (W, H):
             ids = refine_water_edge(rgb, ids, water, F, open_water=open_water)
         return ClassMap(ids=np.ascontiguousarray(ids, dtype=np.uint8), grid=g)

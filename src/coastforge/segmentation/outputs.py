@@ -55,59 +55,91 @@ BIOME_IDS = {name: i for i, name, _d in BIOMES}
 
 def preview(rgb: np.ndarray, ids: np.ndarray, alpha: float = 0.55) -> np.ndarray:
     """The class palette blended over the image (uint8 RGB)."""
-    col = colorize(ids).astype(np.float32)
-    return np.clip((1.0 - alpha) * rgb.astype(np.float32) + alpha * col + 0.5, 0, 255).astype(np.uint8)
+    ids = np.ascontiguousarray(ids, dtype=np.uint8)
+    lut = np.empty((1, 256, 3), np.uint8)  # ``classes.colorize`` as an OpenCV table (ids past the last clip)
+    lut[0, :N_CLASSES] = colorize(np.arange(N_CLASSES))
+    lut[0, N_CLASSES:] = lut[0, N_CLASSES - 1]
+    col = cv2.LUT(cv2.merge([ids, ids, ids]), lut)
+    img = np.ascontiguousarray(rgb[..., :3], dtype=np.uint8)
+    if img.shape != col.shape:
+        raise ValueError(f"preview: image {img.shape} and class map {ids.shape} differ in size")
+    return cv2.addWeighted(img, 1.0 - alpha, col, alpha, 0.0)  # rounds and saturates in one uint8 pass
+
+
+def _blur_factor(sigma_px: float) -> int:
+    """How much coarser a Gaussian of ``sigma_px`` may be computed: a box-average down by f, the blur with
+    sigma/f and a bilinear resize back add ~0.5 f px of blur, negligible while sigma/f ≥ 3."""
+    return max(1, int(sigma_px // 3.0)) if sigma_px >= 6.0 else 1
 
 
 def weight_maps(ids: np.ndarray, gsd_m: float, blur_m: float) -> np.ndarray:
-    """(H, W, 8) uint8 paint-layer weights with soft borders; each pixel sums to exactly 255."""
+    """(H, W, 8) uint8 paint-layer weights with soft borders; each pixel sums to exactly 255.
+
+    A wide blur runs on a grid ``_blur_factor`` times coarser: every step (area average, Gaussian,
+    bilinear resize) is linear and keeps constants, so the eight maps still sum to 1 before quantising,
+    at a fraction of the cost of eight full-resolution Gaussians."""
     h, w = ids.shape
+    ids = np.ascontiguousarray(ids, dtype=np.uint8)
     sigma = max(0.0, blur_m / gsd_m)
-    out = np.zeros((h, w, N_CLASSES), np.uint8)
-    total = np.zeros((h, w), np.int32)
-    for c in np.unique(ids):
-        one = (ids == c).astype(np.float32)
+    f = _blur_factor(sigma)
+    sw, sh = max(1, -(-w // f)), max(1, -(-h // f))
+    planes = np.zeros((N_CLASSES, h, w), np.uint8)  # class-major: each map is one contiguous plane
+    total = np.zeros((h, w), np.uint16)
+    present = np.flatnonzero(np.bincount(ids.ravel(), minlength=N_CLASSES)[:N_CLASSES])
+    for c in present:
+        one = (ids == c).view(np.uint8).astype(np.float32)
         if sigma > 0.3:
-            # a Gaussian is a partition of unity, so the blurred one-hot maps still sum to 1
-            one = cv2.GaussianBlur(one, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
-        q = np.floor(one * 255.0 + 1e-4).astype(np.int32)
-        np.clip(q, 0, 255, out=q)
-        out[..., c] = q.astype(np.uint8)
+            if f > 1:
+                small = cv2.resize(one, (sw, sh), interpolation=cv2.INTER_AREA)
+                small = cv2.GaussianBlur(small, (0, 0), sigma / f, borderType=cv2.BORDER_REFLECT)
+                one = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+            else:
+                # a Gaussian is a partition of unity, so the blurred one-hot maps still sum to 1
+                one = cv2.GaussianBlur(one, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+        # floor(x * 255) (x is in [0, 1]: truncation is the floor); the sum per pixel stays ≤ 255
+        cv2.multiply(one, 255.0, dst=one)
+        np.add(one, 1e-4, out=one)
+        q = one.astype(np.uint8)
+        planes[c] = q
         total += q
-    rest = 255 - total  # 0..7 from flooring: give it to the pixel's own class
-    own = np.take_along_axis(out, ids[..., None].astype(np.intp), axis=2)[..., 0].astype(np.int32) + rest
-    np.put_along_axis(out, ids[..., None].astype(np.intp), np.clip(own, 0, 255).astype(np.uint8)[..., None], axis=2)
-    return out
+    # 0..7 left from flooring: give it to the pixel's own class
+    rest = (255 - total.astype(np.int16)).astype(np.uint8)
+    for c in present:
+        np.add(planes[c], rest, out=planes[c], where=ids == c)
+    return np.moveaxis(planes, 0, -1)  # (H, W, 8) view; planes[c] stays contiguous for writing
+
+
+def _distance_px(nonzero: np.ndarray) -> np.ndarray:
+    """Exact Euclidean distance (px) of every nonzero pixel to the nearest zero pixel (OpenCV's precise
+    transform: several times faster than scipy's ``distance_transform_edt``, same values)."""
+    return cv2.distanceTransform(nonzero.view(np.uint8) if nonzero.dtype == bool else nonzero.astype(np.uint8),
+                                 cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
 
 
 def biome_map(ids: np.ndarray, gsd_m: float, shore_m: float = 15.0, shallow_m: float = 20.0) -> np.ndarray:
     """Biome ids (uint8) for vegetation rules; see the module docstring for the legend."""
-    from scipy import ndimage as ndi
-
     h, w = ids.shape
     # distances need no more than ~0.5 m precision: work on a reduced grid for big images
     f = max(1, int(min(0.5 / gsd_m, max(h, w) / 1024)) if gsd_m < 0.5 else 1)
-    small = ids[::f, ::f]
+    small = np.ascontiguousarray(ids[::f, ::f], dtype=np.uint8)
     water = small == WATER
     g = gsd_m * f
+    lut = np.full(256, BIOME_IDS["paved"], np.uint8)  # class -> biome before the distance rules
+    lut[WATER] = BIOME_IDS["deep_water"]
+    lut[SAND] = BIOME_IDS["beach"]
+    lut[ROCKS] = BIOME_IDS["rocky_shore"]
+    lut[GRASS] = BIOME_IDS["shore_grass"]
+    lut[TREES] = BIOME_IDS["woodland"]
+    lut[ASPHALT] = lut[SIDEWALK] = BIOME_IDS["paved"]
+    lut[DIRT] = BIOME_IDS["bare_ground"]
+    b = lut[small]
     if water.any() and (~water).any():
-        d_to_water = ndi.distance_transform_edt(~water) * g  # on land: distance to the waterline
-        d_to_land = ndi.distance_transform_edt(water) * g
+        inland = _distance_px(~water) * g > shore_m  # land farther than shore_m from the waterline
+        b[water & (_distance_px(water) * g <= shallow_m)] = BIOME_IDS["shallow_water"]
     else:
-        d_to_water = np.full(small.shape, np.inf)
-        d_to_land = np.full(small.shape, np.inf)
-    b = np.full(small.shape, BIOME_IDS["paved"], np.uint8)
-    b[water] = BIOME_IDS["deep_water"]
-    b[water & (d_to_land <= shallow_m)] = BIOME_IDS["shallow_water"]
-    b[small == SAND] = BIOME_IDS["beach"]
-    shore = d_to_water <= shore_m
-    b[(small == ROCKS) & shore] = BIOME_IDS["rocky_shore"]
-    b[(small == ROCKS) & ~shore] = BIOME_IDS["rocky_ground"]
-    b[(small == GRASS) & shore] = BIOME_IDS["shore_grass"]
-    b[(small == GRASS) & ~shore] = BIOME_IDS["inland_grass"]
-    b[small == TREES] = BIOME_IDS["woodland"]
-    b[(small == ASPHALT) | (small == SIDEWALK)] = BIOME_IDS["paved"]
-    b[small == DIRT] = BIOME_IDS["bare_ground"]
+        inland = ~water  # no waterline: all land is inland
+    b[(small == ROCKS) & inland] = BIOME_IDS["rocky_ground"]
+    b[(small == GRASS) & inland] = BIOME_IDS["inland_grass"]
     if f > 1:
         b = cv2.resize(b, (w, h), interpolation=cv2.INTER_NEAREST)
     return b
@@ -127,7 +159,7 @@ def write_segmentation(out_dir: str | Path, class_map: ClassMap, image: GeoImage
         paths["preview"] = str(write_png(out / "classes_preview.png", preview(image.rgb, ids)))
     wm = weight_maps(ids, gsd, cfg.weight_blur_m)
     for c, name in enumerate(CLASS_NAMES):
-        paths[f"weights/{name}"] = str(write_png(out / "weights" / f"{name}.png", np.ascontiguousarray(wm[..., c])))
+        paths[f"weights/{name}"] = str(write_png(out / "weights" / f"{name}.png", wm[..., c]))
     del wm
     biome = biome_map(ids, gsd, cfg.biome_shore_m, cfg.biome_shallow_m)
     paths["biome"] = str(write_png(out / "biome.png", biome))

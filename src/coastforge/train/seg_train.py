@@ -1,0 +1,276 @@
+"""Train the learned segmenter on coastforge's own synthetic renders and export it to ONNX.
+
+    python -m coastforge.train.seg_data --out /tmp/segdata --seeds 2000:2240      # ~12 min, rendering
+    python -m coastforge.train.seg_train --data /tmp/segdata --out /tmp/segnet --steps 2400
+
+writes ``OUT/segmenter.onnx`` and ``OUT/segmenter.json`` (copy both to ``coastforge/data/models/`` to
+ship them). One CPU thread (``torch.set_num_threads(1)``), seeded through ``coastforge.rng``; the real
+marina photo, when present, is only *evaluated* at checkpoints (printed), never trained on.
+
+Appearance randomisation is heavy on purpose, since real photos do not look like our renders: global
+brightness/contrast/gamma/saturation/channel gains, per-class recolouring (water blue, green, olive or
+brown; grass and trees dry or lush; pavement warm or cold), blur, sensor noise, JPEG, and a random scale
+around the working GSD (so a wrong ``--gsd`` of ±30 % still works).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..classes import CLASS_NAMES, N_CLASSES, WATER
+from ..errors import InputError
+from ..rng import stage_rng, stage_seed
+
+WORK_GSD_M = 0.3  # the network's working resolution (metres per pixel)
+FORMAT = "coastforge.learned_segmenter/1"
+
+
+def load_levels(data_dir: Path, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
+    """All (rgb, ids) pairs of a ``seg_data`` folder, resampled to ``work_gsd_m``."""
+    from ..fsio import read_png
+
+    idx_path = data_dir / "index.json"
+    if not idx_path.is_file():
+        raise InputError(f"{idx_path} not found; write training data first with python -m coastforge.train.seg_data")
+    index = json.loads(idx_path.read_text(encoding="utf-8"))
+    s = float(index.get("gsd_m", 0.2)) / work_gsd_m
+    out = []
+    for it in index["items"]:
+        rgb = read_png(data_dir / it["image"])[..., :3]
+        ids = read_png(data_dir / it["classes"])
+        h, w = ids.shape
+        nw, nh = int(round(w * s)), int(round(h * s))
+        out.append((cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_AREA),
+                    cv2.resize(ids, (nw, nh), interpolation=cv2.INTER_NEAREST)))
+    if not out:
+        raise InputError(f"{idx_path} lists no levels")
+    return out
+
+
+def _recolour_classes(img: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Per-class colour gains: the same class looks different from photo to photo."""
+    for c in np.unique(ids):
+        m = ids == c
+        if c == WATER:
+            g = rng.uniform(0.55, 1.45, 3)  # blue, green, olive, brown, grey water
+        else:
+            g = rng.normal(1.0, 0.12, 3)
+        img[m] = img[m] * g.astype(np.float32) + rng.normal(0, 8)
+    return img
+
+
+def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Appearance randomisation of one crop (uint8 → float32 0..255, labels unchanged)."""
+    img = rgb.astype(np.float32)
+    if rng.random() < 0.6:
+        img = _recolour_classes(img, ids, rng)
+    img = img * rng.uniform(0.75, 1.25, 3).astype(np.float32)  # white balance
+    grey = img.mean(2, keepdims=True)
+    img = grey + (img - grey) * rng.uniform(0.4, 1.5)  # saturation
+    mean = img.mean()
+    img = mean + (img - mean) * rng.uniform(0.6, 1.4) + rng.uniform(-35, 35)  # contrast, brightness
+    img = 255.0 * (np.clip(img, 0, 255) / 255.0) ** rng.uniform(0.7, 1.5)  # gamma
+    if rng.random() < 0.3:
+        img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.4, 1.3))
+    if rng.random() < 0.5:
+        img = img + rng.normal(0, rng.uniform(1, 7), img.shape).astype(np.float32)
+    img = np.clip(img, 0, 255)
+    if rng.random() < 0.3:
+        ok, buf = cv2.imencode(".jpg", img.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 90))])
+        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED).astype(np.float32)
+    return img
+
+
+def class_centres(levels, rng: np.random.Generator, per_level: int = 300) -> list[np.ndarray]:
+    """Per class present: (level index, row, col) of up to ``per_level`` random pixels of each level."""
+    out: list[list[np.ndarray]] = [[] for _ in range(N_CLASSES)]
+    for i, (_, ids) in enumerate(levels):
+        for c in range(N_CLASSES):
+            rr, cc = np.nonzero(ids == c)
+            if len(rr):
+                k = rng.choice(len(rr), min(per_level, len(rr)), replace=False)
+                out[c].append(np.stack([np.full(len(k), i), rr[k], cc[k]], 1))
+    return [np.concatenate(o) for o in out if o]
+
+
+def sample_batch(levels, batch: int, crop: int, rng: np.random.Generator,
+                 centres: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A batch of augmented crops: (N, 3, crop, crop) float32 in [-0.5, 0.5], (N, crop, crop) int64."""
+    xs = np.empty((batch, 3, crop, crop), np.float32)
+    ys = np.empty((batch, crop, crop), np.int64)
+    for b in range(batch):
+        s = math.exp(rng.uniform(math.log(0.75), math.log(1.33)))  # GSD error / scale jitter
+        side = int(round(crop / s))
+        if centres is not None and rng.random() < 0.75:
+            # class-balanced: centre the crop on a pixel of a uniformly drawn class (water fills most
+            # levels; dirt, rocks and sand are rare)
+            pts = centres[int(rng.integers(len(centres)))]
+            li_, r, c = pts[int(rng.integers(len(pts)))]
+            rgb, ids = levels[li_]
+            r0, c0 = r - side // 2 + int(rng.integers(-side // 4, side // 4 + 1)), c - side // 2
+        else:
+            rgb, ids = levels[int(rng.integers(len(levels)))]
+            r0 = c0 = None
+        h, w = ids.shape
+        if h < side or w < side:
+            pad = max(side - h, side - w, 0)
+            rgb = cv2.copyMakeBorder(rgb, 0, pad, 0, pad, cv2.BORDER_REFLECT)
+            ids = cv2.copyMakeBorder(ids, 0, pad, 0, pad, cv2.BORDER_REFLECT)
+            h, w = ids.shape
+        if r0 is None:
+            r0, c0 = int(rng.integers(h - side + 1)), int(rng.integers(w - side + 1))
+        r0, c0 = int(np.clip(r0, 0, h - side)), int(np.clip(c0, 0, w - side))
+        ci = rgb[r0:r0 + side, c0:c0 + side]
+        li = ids[r0:r0 + side, c0:c0 + side]
+        if side != crop:
+            ci = cv2.resize(ci, (crop, crop), interpolation=cv2.INTER_AREA if side > crop else cv2.INTER_LINEAR)
+            li = cv2.resize(li, (crop, crop), interpolation=cv2.INTER_NEAREST)
+        k = int(rng.integers(4))
+        ci, li = np.rot90(ci, k), np.rot90(li, k)
+        if rng.random() < 0.5:
+            ci, li = ci[:, ::-1], li[:, ::-1]
+        ci, li = np.ascontiguousarray(ci), np.ascontiguousarray(li)
+        img = augment(ci, li, rng)
+        xs[b] = img.transpose(2, 0, 1) / 255.0 - 0.5
+        ys[b] = li
+    return xs, ys
+
+
+def class_weights(levels) -> np.ndarray:
+    """Inverse square-root frequency weights (clipped), so rare classes (dirt, rocks, sand) count."""
+    counts = np.zeros(N_CLASSES, np.float64)
+    for _, ids in levels:
+        counts += np.bincount(ids.ravel(), minlength=N_CLASSES)[:N_CLASSES]
+    freq = counts / counts.sum()
+    present = freq > 0
+    w = np.ones(N_CLASSES)
+    w[present] = np.sqrt(np.median(freq[present]) / freq[present])
+    return np.clip(w, 0.3, 4.0).astype(np.float32)
+
+
+def export_onnx(net, path: Path) -> Path:
+    """Export in eval mode with dynamic H, W (multiples of 16); input RGB 0..1, output logits."""
+    import torch
+
+    from ..fsio import atomic_path
+
+    class Wrap(torch.nn.Module):
+        def __init__(self, m):
+            super().__init__()
+            self.m = m
+
+        def forward(self, x):
+            return self.m(x - 0.5)
+
+    net.eval()
+    with atomic_path(path) as tmp, torch.no_grad():
+        torch.onnx.export(Wrap(net), (torch.zeros(1, 3, 128, 128),), str(tmp), dynamo=False, opset_version=17,
+                          input_names=["image"], output_names=["logits"],
+                          dynamic_axes={"image": {2: "h", 3: "w"}, "logits": {2: "h", 3: "w"}})
+    net.train()
+    return path
+
+
+def _eval_marina(onnx_path: Path, meta: dict) -> str:
+    """mIoU of the exported model on the real marina (evaluation only), or '' without the shared data."""
+    from ..bench.segmentation import MARINA_TRUTH, SHARED, class_ious, rasterize_polygons
+
+    img_path = SHARED / "aerial" / "marina_p0861" / "image.jpg"
+    if not img_path.exists() or not MARINA_TRUTH.exists():
+        return ""
+    from ..config import SegmentConfig
+    from ..io import read_image
+    from ..segmentation.learned import LearnedSegmenter
+
+    spec = json.loads(MARINA_TRUTH.read_text(encoding="utf-8"))
+    image = read_image(img_path, gsd_m=float(spec["gsd_m"]))
+    seg = LearnedSegmenter(SegmentConfig(learned_water="net", learned_flips=1), weights=onnx_path, meta=meta)  # raw net
+    res = class_ious(seg.segment(image, 0).ids, rasterize_polygons(spec))
+    return f"marina mIoU {res['miou']:.3f} water {res['iou']['water']:.3f} | " + " ".join(
+        f"{n}={res['iou'][n]:.2f}" for n in res["present"])
+
+
+def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch: int = 12, crop: int = 128,
+          lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400) -> Path:
+    from ..fsio import atomic_write_text
+    from ..registry import require
+
+    torch = require("torch", "train", "training the learned segmenter")
+    from .seg_model import build_segmenter
+
+    torch.set_num_threads(1)
+    torch.manual_seed(stage_seed(seed, "train", "seg", "torch"))
+    rng = stage_rng(seed, "train", "seg", "batches")
+    data_dir, out = Path(data_dir), Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.time()
+    levels = load_levels(data_dir)
+    seeds = [int(it["seed"]) for it in json.loads((data_dir / "index.json").read_text())["items"]]
+    weights = class_weights(levels)
+    centres = class_centres(levels, stage_rng(seed, "train", "seg", "centres"))
+    print(f"{len(levels)} levels loaded in {time.time() - t0:.0f} s; class weights "
+          + " ".join(f"{n}={w:.2f}" for n, w in zip(CLASS_NAMES, weights)), flush=True)
+    net = build_segmenter(N_CLASSES, width)
+    n_params = sum(p.numel() for p in net.parameters())
+    opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=steps, pct_start=0.1)
+    loss_fn = torch.nn.CrossEntropyLoss(weight=torch.from_numpy(weights))
+    onnx_path, meta_path = out / "segmenter.onnx", out / "segmenter.json"
+    meta = {"format": FORMAT, "classes": list(CLASS_NAMES), "work_gsd_m": WORK_GSD_M, "multiple": 16,
+            "input": "RGB 0..1, NCHW", "output": "logits (1, 8, H, W)",
+            "training": {"seed": seed, "steps": steps, "batch": batch, "crop_px": crop, "lr": lr, "width": width,
+                         "threads": 1, "levels": len(levels), "params": n_params,
+                         "data_seeds": [min(seeds), max(seeds)],
+                         "command": f"python -m coastforge.train.seg_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1}"
+                                    f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
+                                    f"--batch {batch} --crop {crop} --width {width} --seed {seed}"}}
+    t_train = time.time()
+    run = 0.0
+    for step in range(1, steps + 1):
+        x, y = sample_batch(levels, batch, crop, rng, centres)
+        logits = net(torch.from_numpy(x))
+        loss = loss_fn(logits, torch.from_numpy(y))
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+        run = 0.98 * run + 0.02 * loss.item() if step > 1 else loss.item()
+        if step % 50 == 0:
+            print(f"step {step}/{steps} loss {run:.3f} {time.time() - t_train:.0f} s", flush=True)
+        if step % eval_every == 0 or step == steps:
+            export_onnx(net, onnx_path)
+            meta["training"]["minutes"] = round((time.time() - t_train) / 60, 1)
+            atomic_write_text(meta_path, json.dumps(meta, indent=1) + "\n")
+            print(f"checkpoint {step}: {_eval_marina(onnx_path, meta)}", flush=True)
+    print(f"done: {onnx_path} ({onnx_path.stat().st_size / 1e6:.2f} MB, {n_params} parameters), "
+          f"{(time.time() - t_train) / 60:.1f} min", flush=True)
+    return onnx_path
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", required=True, help="folder written by python -m coastforge.train.seg_data")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--steps", type=int, default=2400)
+    ap.add_argument("--batch", type=int, default=12)
+    ap.add_argument("--crop", type=int, default=128)
+    ap.add_argument("--lr", type=float, default=3e-3)
+    ap.add_argument("--width", type=int, default=16)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--eval-every", type=int, default=400)
+    a = ap.parse_args(argv)
+    if a.crop % 16:
+        raise InputError(f"--crop {a.crop} must be a multiple of 16")
+    train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
+          eval_every=a.eval_every)
+
+
+if __name__ == "__main__":
+    main()
