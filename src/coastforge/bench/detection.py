@@ -2,7 +2,9 @@
 
 Prints, per image: recall, detection precision (Hungarian one-to-one on centre distance, a match when
 the centres are within half the labelled length), orientation RMSE (mod 180°), heading accuracy when
-the truth has a heading, pier structures found, and the time. Real data: the DOTA marina crop
+the truth has a heading, RMS relative length and width errors (Lrel, Wrel) and the centre RMSE in
+metres of the matched boxes, pier structures found, and the time. ``--set detect.refine=false`` gives
+the backend's boxes before refinement (``coastforge.detection.refine``). Real data: the DOTA marina crop
 (ships + harbor structures), the DOTA vehicles crop and the sen2ships ports from ``../shared/data``;
 synthetic: ``coastforge.synth`` levels at both resolutions.
 """
@@ -45,6 +47,9 @@ class Score:
     orient_err: list = field(default_factory=list)
     heading_ok: int = 0
     heading_n: int = 0
+    size_err: list = field(default_factory=list)  # (length, width) relative errors of matched boxes
+    centre_err: list = field(default_factory=list)  # centre distance of matched boxes (pixels)
+    gsd_m: float = float("nan")
     extra: dict = field(default_factory=dict)
 
     @property
@@ -58,6 +63,18 @@ class Score:
     @property
     def orient_rmse(self):
         return float(np.sqrt(np.mean(np.square(self.orient_err)))) if self.orient_err else float("nan")
+
+    @property
+    def size_rmse(self):
+        """RMS relative error of (length, width) over matched boxes."""
+        if not self.size_err:
+            return float("nan"), float("nan")
+        a = np.asarray(self.size_err)
+        return tuple(float(v) for v in np.sqrt(np.mean(np.square(a), 0)))
+
+    @property
+    def centre_rmse_m(self):
+        return float(np.sqrt(np.mean(np.square(self.centre_err))) * self.gsd_m) if self.centre_err else float("nan")
 
     @property
     def heading_acc(self):
@@ -116,6 +133,9 @@ def match(truth: list[Truth], preds: list[Detection], score: Score) -> list[tupl
     for i, j in pairs:
         g, d = truth[i], preds[j]
         score.orient_err.append(float(wrap_half_deg(d.yaw_deg - g.yaw)))
+        score.centre_err.append(float(dist[i, j]))
+        if g.width > 0:
+            score.size_err.append((d.length_px / g.length - 1.0, d.width_px / g.width - 1.0))
         if g.heading_known:
             score.heading_n += 1
             score.heading_ok += int(abs(wrap_deg(d.yaw_deg - g.yaw)) < 90.0)
@@ -158,7 +178,7 @@ def bench_real(data: Path, backend: str, config: DetectConfig, overlay_dir: Path
         lab = read_dota_yolo(marina / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
         ships = [t for c, t in lab if c == "ship"]
         harbors = [t for c, t in lab if c == "harbor"]
-        s = Score("marina_p0861 boats")
+        s = Score("marina_p0861 boats", gsd_m=0.2)
         boats = [d for d in dets if d.category == "boat"]
         pairs = match(ships, boats, s)
         # the right edge (x > 96 %) holds a column of boats that DOTA labelled only partly
@@ -232,11 +252,11 @@ def bench_synth(presets: list[str], seeds: list[int], backend: str, config: Dete
                 gsd = float(im["gsd_m"])
                 img, objs, _piers = synth_truth(truth_path, out / im["path"], gsd)
                 dets, dt = _run(img, backend, config, **opts)
-                s = by_gsd.setdefault(gsd, Score(f"synthetic {gsd:g} m/px (all)"))
+                s = by_gsd.setdefault(gsd, Score(f"synthetic {gsd:g} m/px (all)", gsd_m=gsd))
                 for cat in ("boat", "vehicle", "buoy"):
                     t_c, d_c = [t for t in objs if t.category == cat], [d for d in dets if d.category == cat]
                     match(t_c, d_c, s)
-                    match(t_c, d_c, by_gsd.setdefault((gsd, cat), Score(f"synthetic {gsd:g} m/px {cat}")))
+                    match(t_c, d_c, by_gsd.setdefault((gsd, cat), Score(f"synthetic {gsd:g} m/px {cat}", gsd_m=gsd)))
                 s.extra["seconds"] = round(s.extra.get("seconds", 0.0) + dt, 2)
     return list(by_gsd.values())
 
@@ -268,10 +288,12 @@ def _fmt(v) -> str:
 
 
 def print_scores(scores: list[Score]) -> None:
-    print(f"{'set':34s} {'truth':>5s} {'pred':>5s} {'recall':>6s} {'prec':>6s} {'orRMSE':>6s} {'head':>6s}  extra")
+    print(f"{'set':34s} {'truth':>5s} {'pred':>5s} {'recall':>6s} {'prec':>6s} {'orRMSE':>6s} {'head':>6s} "
+          f"{'Lrel':>6s} {'Wrel':>6s} {'ctr_m':>6s}  extra")
     for s in scores:
+        lr, wr = s.size_rmse
         print(f"{s.name:34s} {s.n_truth:5d} {s.n_pred:5d} {_fmt(s.recall)} {_fmt(s.precision)} "
-              f"{_fmt(s.orient_rmse)} {_fmt(s.heading_acc)}  {s.extra}")
+              f"{_fmt(s.orient_rmse)} {_fmt(s.heading_acc)} {_fmt(lr)} {_fmt(wr)} {_fmt(s.centre_rmse_m)}  {s.extra}")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -283,7 +305,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--backend", default="classical")
     ap.add_argument("--weights", default=None)
     ap.add_argument("--overlays", type=Path, default=None, help="write overlay PNGs into this folder")
-    ap.add_argument("--synth-presets", default="simple_pier_a,pier_parking,marina")
+    ap.add_argument("--synth-presets",
+                    default="simple_pier_a,simple_pier_b,pier_parking,marina,lake_harbor,beach,rocky_shore")
     ap.add_argument("--synth-seeds", default="0")
     ap.add_argument("--synth-dir", type=Path, default=Path("/tmp/coastforge-bench-detect"))
     ap.add_argument("--no-synth", action="store_true")

@@ -51,6 +51,12 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
     cls = registry.load("detect", name)
     detector = cls(config, **opts)
     dets = detector.detect(image, class_map, seed)
+    if config.refine:
+        from .refine import refine_boxes
+
+        # the classical backend snaps boats to their pier's direction, which on the real marina beat
+        # the mirror-symmetry axis (median error 1.4° vs 2.4°): its axes are kept
+        dets = refine_boxes(rgb, dets, image.grid.gsd_m, axis=name != "classical")
     out = []
     for d in dets:
         if d.category not in DETECTION_CATEGORIES:

@@ -253,6 +253,7 @@ class ClassicalDetector:
         lab = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2LAB).astype(np.float32)
 
         water0 = self.water_mask(lab, gsd, class_map)
+        self.water_work, self.work_scale = water0, scale  # kept for the hybrid detector's land check
         self._afloat = None
         dets: list[Detection] = []
         if water0.sum() * gsd * gsd >= self.config.min_water_area_m2:
