@@ -1,11 +1,16 @@
-"""Matching: each detection → the most similar library asset, by appearance and real size.
+"""Matching: each detection → the library asset it shows, by shape at metric scale, appearance and size.
 
 A detection is cropped rotation-normalised (front along +x), embedded with the library's embedder and
-compared with every asset of its category; the appearance similarity is combined with a size
-likelihood (detected length/width in metres against each asset's ``dims_m``). ``best`` takes the top
-candidate, ``sample`` (the paper's behaviour) a seeded random one within a similarity margin. If the
-detector could not tell bow from stern, the crop is compared with the chosen asset's top view at both
-headings. Every decision (candidates, scores, choice) is recorded.
+compared with every asset of its category. With shape re-ranking (``match.shape``, the default) each
+candidate's top views are also fitted to the crop at metric scale over a small search of scale, shift
+and both headings, on paint-invariant orientation fields (``ShapeMatcher``): car and small-boat paint is
+arbitrary, their outline and structure are not. The fit's correlation, the embedding's cosine, a prior on
+the instance's scale and the detected length/width against the fitted asset make the score; the fit at
+both headings (with the detector's heading confidence as a prior) decides bow from stern. Without it the
+embedding and a size likelihood decide and, if the detector was unsure, an NCC of the crop against the
+chosen asset's top view at both headings. ``best`` takes the top candidate, ``sample`` (the paper's
+behaviour) a seeded random one within a score margin. Every decision (candidates, scores, choice, fitted
+scale and centre offset) is recorded.
 """
 
 from __future__ import annotations
@@ -29,9 +34,11 @@ SIZE_SIGMA_WIDTH = 0.35  # widths are noisier (shadows, fenders, side-by-side bo
 @dataclass(frozen=True)
 class Candidate:
     asset_id: str
-    appearance: float
-    size: float
+    appearance: float  # the embedding's cosine
+    size: float  # size likelihood of the detected length/width against dims_m
     score: float
+    shape: float | None = None  # orientation-field correlation of the best fit (shape re-ranking)
+    fit_scale: float | None = None  # the asset's scale at that fit
 
 
 @dataclass(frozen=True)
@@ -43,13 +50,21 @@ class MatchDecision:
     heading_source: str  # detector | library | unresolved
     flip_evidence: float  # NCC(same heading) - NCC(flipped); > 0 supports the chosen yaw
     candidates: tuple[Candidate, ...]
+    fit_scale: float | None = None  # the chosen asset's scale that fitted the crop best (shape re-ranking)
+    fit_offset_m: tuple[float, float] = (0.0, 0.0)  # fitted centre - box centre, along the final yaw and to its left
 
     def to_dict(self) -> dict:
-        return {"index": self.index, "asset_id": self.asset_id, "score": round(self.score, 4),
-                "yaw_deg": round(self.yaw_deg, 3), "heading_source": self.heading_source,
-                "flip_evidence": round(self.flip_evidence, 4),
-                "candidates": [{"asset_id": c.asset_id, "appearance": round(c.appearance, 4),
-                                "size": round(c.size, 4), "score": round(c.score, 4)} for c in self.candidates]}
+        out = {"index": self.index, "asset_id": self.asset_id, "score": round(self.score, 4),
+               "yaw_deg": round(self.yaw_deg, 3), "heading_source": self.heading_source,
+               "flip_evidence": round(self.flip_evidence, 4),
+               "candidates": [{"asset_id": c.asset_id, "appearance": round(c.appearance, 4),
+                               "size": round(c.size, 4), "score": round(c.score, 4),
+                               **({"shape": c.shape, "fit_scale": c.fit_scale} if c.shape is not None else {})}
+                              for c in self.candidates]}
+        if self.fit_scale is not None:
+            out["fit_scale"] = self.fit_scale
+            out["fit_offset_m"] = [round(v, 3) for v in self.fit_offset_m]
+        return out
 
 
 def crop_rotated(rgb: np.ndarray, cx: float, cy: float, yaw_deg: float, out_w_px: int, out_h_px: int,
@@ -137,12 +152,41 @@ def asset_top_view(library, asset_id: str, background: str) -> tuple[np.ndarray,
     return _VIEW_CACHE[key]
 
 
+def shape_matcher(library) -> "ShapeMatcher":
+    """The library's shape matcher (its templates are cached across calls, e.g. over the tiles of a scene)."""
+    sm = getattr(library, "_shape_matcher", None)
+    if sm is None or sm.library is not library:
+        sm = ShapeMatcher(library)
+        try:
+            library._shape_matcher = sm
+        except AttributeError:  # a library-like object that takes no attributes: no cache across calls
+            pass
+    return sm
+
+
+def _scale_sigma(config: MatchConfig, category: str) -> float:
+    return {"boat": config.shape_scale_sigma_boat, "vehicle": config.shape_scale_sigma_vehicle}.get(
+        category, config.shape_scale_sigma_buoy)
+
+
+def _logit(p: float) -> float:
+    p = min(max(float(p), 0.5), 0.99)  # below 0.5 the detector would have said the other way
+    return math.log(p / (1.0 - p))
+
+
 def match_detections(image: GeoImage, dets: list[Detection], library, config: MatchConfig, seed: int,
                      heading_min_evidence: float = 0.03, heading_trust: float = 0.7) -> list[MatchDecision]:
-    """Choose an asset and a final yaw for every boat, vehicle and buoy detection."""
+    """Choose an asset and a final yaw for every boat, vehicle and buoy detection.
+
+    With ``config.shape`` (the default) every asset of the category is fitted to the crop by shape (see
+    ``ShapeMatcher``) at both headings; the score adds the embedding's cosine, a prior on the instance's
+    scale and the detected length/width against the fitted asset, and the detector's heading confidence
+    weighs against the shape's heading. Without it: embedding + size likelihood, heading from NCC."""
     todo = [(i, d) for i, d in enumerate(dets) if d.category in ASSET_CATEGORIES_FOR]
     if not todo:
         return []
+    if config.mode not in ("best", "sample"):
+        raise LibraryError(f"match.mode = {config.mode!r}; valid modes: best, sample")
     crops, gsds = [], []
     for _, d in todo:
         c, g = detection_crop(image, d)
@@ -152,6 +196,8 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
     by_cat: dict[str, list] = {}
     for a in library.assets:
         by_cat.setdefault(a.category, []).append(a)
+    sm = shape_matcher(library) if config.shape else None
+    gsd_img = image.grid.gsd_m
     decisions = []
     for row, (i, d) in enumerate(todo):
         cats = ASSET_CATEGORIES_FOR[d.category]
@@ -162,25 +208,65 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
                 "library (coastforge library build) or use the starter kit")
         hits = library.search(vecs[row:row + 1], k=len(pool), category=cats[0])[0]
         appearance = dict(hits)
-        L, W = d.length_px * image.grid.gsd_m, d.width_px * image.grid.gsd_m
-        cands = []
+        L, W = d.length_px * gsd_img, d.width_px * gsd_img
+        bg = "ground" if d.category == "vehicle" else "water"
+        shapes = {}
+        if sm is not None:
+            sig = _scale_sigma(config, d.category)
+            scales = tuple(s for s in ShapeMatcher.SCALES if abs(math.log(s)) <= 2.5 * sig + 1e-9) or (1.0,)
+            order = [aid for aid, _s in hits] + [a.id for a in pool if a.id not in appearance]
+            try:
+                shapes = sm.score(image.rgb, d, gsd_img, order, bg, scales=scales)
+            except LibraryError:  # views or meshes unreadable: the embedding and size still decide
+                shapes = {}
+            if any(a.id not in shapes for a in pool):  # one scale for all candidates, or none
+                shapes = {}
+        # the detector's belief in its heading, as a bonus for fits at that heading
+        hp = config.heading_prior_weight * _logit(d.heading_confidence) if d.heading_known else 0.0
+        cands, fits = [], {}
         for a in pool:
             app = float(appearance.get(a.id, -1.0))
             sz = size_likelihood(L, W, a.dims_m)
-            cands.append(Candidate(a.id, app, sz, (1 - config.size_weight) * app + config.size_weight * sz))
+            sh = shapes.get(a.id)
+            if sh is None:
+                cands.append(Candidate(a.id, app, sz, (1 - config.size_weight) * app + config.size_weight * sz))
+                continue
+            keep = (sh.ncc if not sh.flipped else sh.ncc_other_heading) + hp / 2
+            flip = (sh.ncc if sh.flipped else sh.ncc_other_heading) - hp / 2
+            s = sh.scale
+            dl = math.log(max(L, 1e-3) / (a.dims_m[0] * s)) / config.shape_length_sigma
+            dw = math.log(max(W, 1e-3) / (a.dims_m[1] * s)) / config.shape_width_sigma
+            size_log = -0.5 * (config.shape_scale_weight * (math.log(s) / sig) ** 2
+                               + config.shape_length_weight * dl * dl + config.shape_width_weight * dw * dw)
+            score = max(keep, flip) + config.shape_appearance_weight * app + size_log
+            fits[a.id] = (flip > keep, sh)
+            cands.append(Candidate(a.id, app, sz, score, round(sh.ncc, 4), s))
         cands.sort(key=lambda c: -c.score)
         chosen = cands[0]
         if config.mode == "sample":
             near = [c for c in cands if c.score >= cands[0].score - config.sample_margin]
             chosen = near[int(stage_rng(seed, "match", i).integers(len(near)))]
-        elif config.mode != "best":
-            raise LibraryError(f"match.mode = {config.mode!r}; valid modes: best, sample")
-        # Heading: a confident detector decides (the learned detector is right ~95-98 % of the time on
-        # renders). Otherwise compare the crop (front at +x by the detector's guess) with the top views of the
-        # best candidates at both headings (~90 % right on true boxes, against ~50 % for silhouette cues).
         yaw, source, evidence = float(d.yaw_deg), "detector", 0.0
-        if not d.heading_known or d.heading_confidence < heading_trust:
-            bg = "ground" if d.category == "vehicle" else "water"
+        fit_scale, offset = None, (0.0, 0.0)
+        if chosen.asset_id in fits:
+            # heading from the fit: the chosen asset at both headings, the detector's confidence as a prior
+            flipped, sh = fits[chosen.asset_id]
+            ncc_keep = sh.ncc_other_heading if sh.flipped else sh.ncc
+            ncc_flip = sh.ncc if sh.flipped else sh.ncc_other_heading
+            evidence = (ncc_flip - ncc_keep) if flipped else (ncc_keep - ncc_flip)
+            if flipped:
+                yaw = float(wrap_deg(yaw + 180.0))
+            if abs(ncc_keep - ncc_flip) >= heading_min_evidence or flipped:
+                source = "library"
+            elif not d.heading_known:
+                source = "unresolved"
+            fit_scale = sh.scale
+            ox, oy = sh.offset_m
+            # offsets were measured in the box's frame; after a flip the box frame turned by 180 degrees
+            offset = (-ox, -oy) if flipped else (ox, oy)
+        elif not d.heading_known or d.heading_confidence < heading_trust:
+            # Heading without the shape fit: compare the crop (front at +x by the detector's guess) with the top
+            # views of the best candidates at both headings (~90 % right on true boxes).
             top = [chosen] + [c for c in cands[:3] if c.asset_id != chosen.asset_id][:2]
             wsum = esum = 0.0
             for j, c in enumerate(top):
@@ -195,5 +281,280 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
                 source = "library" if abs(evidence) >= heading_min_evidence else "unresolved"
                 evidence = abs(evidence)
         decisions.append(MatchDecision(i, chosen.asset_id, chosen.score, float(wrap_deg(yaw)), source, evidence,
-                                       tuple(cands[: min(5, len(cands))])))
+                                       tuple(cands[: min(5, len(cands))]), fit_scale, offset))
     return decisions
+
+
+# --------------------------------------------------------------------------------------------------
+# shape re-ranking: the crop against each candidate's top views at metric scale
+
+def orientation_field(img: np.ndarray, sigma: float = 0.8, norm_sigma: float = 2.0) -> np.ndarray:
+    """Paint-invariant structure: the colour structure tensor's double-angle vector (Jxx - Jyy, 2 Jxy),
+    divided by the local gradient energy. Unchanged by contrast polarity (a black car and a white one
+    give the same edges) and, locally, by contrast strength; (H, W, 2) float32 in [-1, 1]."""
+    import cv2
+
+    f = img.astype(np.float32)
+    gx = cv2.Sobel(f, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(f, cv2.CV_32F, 0, 1, ksize=3)
+    if f.ndim == 3:  # channel sums with cv2.transform: numpy's reduction over a length-3 axis is slow
+        ones = np.ones((1, f.shape[2]), np.float32)
+        jxx, jyy, jxy = cv2.transform(gx * gx, ones), cv2.transform(gy * gy, ones), cv2.transform(gx * gy, ones)
+    else:
+        jxx, jyy, jxy = gx * gx, gy * gy, gx * gy
+    a = cv2.GaussianBlur(jxx - jyy, (0, 0), sigma)
+    b = cv2.GaussianBlur(2.0 * jxy, (0, 0), sigma)
+    t = cv2.GaussianBlur(jxx + jyy, (0, 0), norm_sigma)
+    # flat areas (sensor noise, water ripples) must not be amplified into structure
+    eps = 0.05 * float(cv2.mean(t)[0]) + 25.0
+    return np.stack([a / (t + eps), b / (t + eps)], axis=2).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class ShapeScore:
+    asset_id: str
+    ncc: float  # best correlation of orientation fields (normalised as in ``score``)
+    scale: float  # the asset's scale at the best fit
+    flipped: bool  # best fit with the front at the crop's left (yaw + 180)
+    ncc_other_heading: float  # best correlation at the other heading (heading evidence)
+    offset_m: tuple[float, float] = (0.0, 0.0)  # fitted centre minus box centre: along the box's yaw, to its left
+
+
+class ShapeMatcher:
+    """Compares rotation-normalised crops with the library's top views of a few candidates over a small
+    search of scale, shift and both headings, on orientation fields (paint-invariant). Templates are
+    made once per (asset, metres per pixel, scale) and cached on the matcher."""
+
+    # scales and working resolutions on one lattice (2^(1/12) and 2^(3/12) steps): a template depends only on
+    # gsd / scale, so templates made for one object serve others of other sizes
+    SCALES = tuple(2.0 ** (k / 12.0) for k in range(-3, 4))  # 0.84 .. 1.19
+    MAX_LEN_PX = 64  # objects are compared at most this long (finer detail costs time, adds little)
+    SHIFT_ALONG = 0.10  # search +- this fraction of the length along, and of the width across
+    SHIFT_ACROSS = 0.15
+    MAX_VIEWS = 10  # views averaged per template (the lightings first, then repainted copies)
+    LENGTH_TOLERANCE = 1.5  # scaled asset lengths beyond detected x/÷ this are not tried
+
+    def __init__(self, library):
+        self.library = library
+        self._views: dict = {}
+        self._tpl: dict = {}
+
+    @staticmethod
+    def work_gsd(image_gsd: float, length_m: float, max_len_px: int) -> float:
+        """The image's metres per pixel, coarsened in steps of 2^(1/4) for long objects (so templates of
+        similar objects share a cache entry)."""
+        g = float(image_gsd)
+        need = length_m / max_len_px
+        if need > g:
+            g = g * 2.0 ** (math.ceil(4 * math.log2(need / g)) / 4.0)
+        return g
+
+    def _asset_views(self, asset_id: str, background: str):
+        """The asset's views on ``background`` and its silhouette, cut to the object plus a margin, symmetric
+        about the view centre (= the footprint centre); float32, at the views' metres per pixel."""
+        key = (asset_id, background)
+        if key not in self._views:
+            lib = self.library
+            a = lib.asset(asset_id)
+            if hasattr(lib, "views_on"):
+                views = lib.views_on(asset_id, background)[: self.MAX_VIEWS]
+            else:
+                views = [lib.top_view(asset_id, background)[0]]
+            gsd = float(a.view_gsd_m)
+            n = views[0].shape[0]
+            sil = _silhouette(lib, asset_id, n, gsd, views[0])
+            ys, xs = np.nonzero(sil)
+            h = n // 2
+            if len(xs):
+                hx = min(h, int(max(h - xs.min(), xs.max() + 1 - h)) + 6)
+                hy = min(h, int(max(h - ys.min(), ys.max() + 1 - h)) + 6)
+            else:
+                hx = hy = h
+            cut = (slice(h - hy, h + hy), slice(h - hx, h + hx))
+            self._views[key] = ([np.ascontiguousarray(v[cut], np.float32) for v in views], gsd,
+                                np.ascontiguousarray(sil[cut]))
+        return self._views[key]
+
+    def template(self, asset_id: str, background: str, gsd: float, scale: float) -> "_Template":
+        """The orientation field x silhouette mask of the asset scaled by ``scale`` and seen at ``gsd``, front
+        at +x, footprint centre at the template centre; the field is the mean over the asset's views (the
+        lightings and repainted copies: edges that every paint shows count most)."""
+        import cv2
+
+        key = (asset_id, background, round(1200.0 * math.log2(gsd / scale)))
+        if key in self._tpl:
+            return self._tpl[key]
+        views, vgsd, sil = self._asset_views(asset_id, background)
+        f = vgsd * scale / gsd
+        vh, vw = sil.shape
+        mw, mh = max(4, int(round(vw * f))), max(4, int(round(vh * f)))
+        interp = cv2.INTER_AREA if f < 1 else cv2.INTER_LINEAR
+        field = None
+        for v in views:
+            fv = orientation_field(cv2.resize(v, (mw, mh), interpolation=interp))
+            field = fv if field is None else field + fv
+        field /= len(views)
+        mask = cv2.resize(sil, (mw, mh), interpolation=cv2.INTER_AREA) > 0.3
+        mask = cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
+        ys, xs = np.nonzero(mask)
+        if not len(xs):
+            ys, xs = np.array([mh // 2]), np.array([mw // 2])
+        cx, cy = (mw - 1) / 2.0, (mh - 1) / 2.0
+        # symmetric about the centre (= the footprint centre), so the template centre is the object's
+        hx = int(math.ceil(max(cx - xs.min(), xs.max() - cx)))
+        hy = int(math.ceil(max(cy - ys.min(), ys.max() - cy)))
+        x0, x1 = max(0, int(round(cx - hx))), int(round(cx + hx)) + 1
+        y0, y1 = max(0, int(round(cy - hy))), int(round(cy + hy)) + 1
+        fm = field[y0:y1, x0:x1] * mask[y0:y1, x0:x1, None]
+        mk = mask[y0:y1, x0:x1]
+        out = _Template({False: np.ascontiguousarray(fm), True: np.ascontiguousarray(fm[::-1, ::-1])},
+                        {False: np.ascontiguousarray(mk), True: np.ascontiguousarray(mk[::-1, ::-1])},
+                        float(np.sqrt((fm * fm).sum())), mk.shape,
+                        np.stack([fm.ravel(), fm[::-1, ::-1].ravel()], 1),
+                        np.stack([mk.ravel(), mk[::-1, ::-1].ravel()], 1))
+        if len(self._tpl) > 4000:
+            self._tpl.clear()
+        self._tpl[key] = out
+        return out
+
+    def score(self, rgb: np.ndarray, det: Detection, image_gsd: float, asset_ids, background: str,
+              headings=(False, True), scales: tuple[float, ...] | None = None) -> dict[str, ShapeScore]:
+        """Per candidate, the best fit over scale, shift and heading (flipped = front at yaw + 180)."""
+        import cv2
+
+        if not asset_ids:
+            return {}
+        lib = self.library
+        length_m = det.length_px * image_gsd
+        dims = {a: lib.asset(a).dims_m for a in asset_ids}
+        scales_all = tuple(scales) if scales else self.SCALES
+        # compare at a resolution set by the object (a 3 m dinghy keeps its detail beside 18 m yachts)
+        gsd = self.work_gsd(image_gsd, length_m * max(scales_all), self.MAX_LEN_PX)
+        sx = max(2, int(math.ceil(self.SHIFT_ALONG * length_m / gsd)))
+        sy = max(2, int(math.ceil(self.SHIFT_ACROSS * det.width_px * image_gsd / gsd)))
+        plans = []
+        for aid in asset_ids:
+            # scales that fit the detected length (generously: boxes can be 30 % off); at least the nearest
+            want = length_m / max(dims[aid][0], 1e-3)
+            fit = [s for s in scales_all if 1.0 / self.LENGTH_TOLERANCE <= want / s <= self.LENGTH_TOLERANCE] \
+                or [min(scales_all, key=lambda s: abs(math.log(want / s)))]
+            for s in fit:
+                tpl = self.template(aid, background, gsd, s)
+                if tpl.norm > 0:
+                    plans.append((aid, s, tpl, abs(math.log(want / s))))
+        if not plans:
+            return {}
+        out_w = max(p[2].shape[1] for p in plans) + 2 * sx + 8
+        out_h = max(p[2].shape[0] for p in plans) + 2 * sy + 8
+        f = image_gsd / gsd
+        if f < 0.999:  # crop at full resolution, then area-average (no aliasing)
+            big_crop = crop_rotated(rgb, det.cx_px, det.cy_px, det.yaw_deg, int(math.ceil(out_w / f)) + 2,
+                                    int(math.ceil(out_h / f)) + 2, 1.0)
+            crop = cv2.resize(big_crop, (out_w, out_h), interpolation=cv2.INTER_AREA)
+            # where the box centre landed (crop_rotated puts it at size / 2 in pixel-centre coordinates)
+            ccx = (big_crop.shape[1] / 2.0 + 0.5) * out_w / big_crop.shape[1] - 0.5
+            ccy = (big_crop.shape[0] / 2.0 + 0.5) * out_h / big_crop.shape[0] - 0.5
+        else:
+            crop = crop_rotated(rgb, det.cx_px, det.cy_px, det.yaw_deg, out_w, out_h, 1.0)
+            ccx, ccy = out_w / 2.0, out_h / 2.0
+        field = np.ascontiguousarray(orientation_field(crop))
+        energy = np.ascontiguousarray((field * field).sum(2))
+        ch, cw = field.shape[:2]
+        # the structure the fit must explain: the box (10 % margin). The correlation is normalised by the
+        # geometric mean of the crop's energy under the template and in the box: a short template must not win
+        # on a long object by fitting only part of it (the plain masked NCC favours the shortest car at 0.2 m/px)
+        bx, by = 0.55 * length_m / gsd, 0.55 * det.width_px * image_gsd / gsd
+        box_norm = float(np.sqrt(energy[max(0, int(ccy - by)):int(math.ceil(ccy + by)) + 1,
+                                        max(0, int(ccx - bx)):int(math.ceil(ccx + bx)) + 1].sum()))
+        # 1. where is each candidate's best fit? Its template at the scale nearest the box, at the box's
+        #    heading, over the full shift range (the template is symmetric about the footprint centre, so the
+        #    other heading fits at the same place)
+        offsets = {}
+        for aid in asset_ids:
+            mine = [p for p in plans if p[0] == aid]
+            if not mine:
+                continue
+            tpl = min(mine, key=lambda p: p[3])[2]
+            th, tw = tpl.shape
+            y0, x0 = (ch - th) // 2 - sy, (cw - tw) // 2 - sx
+            num = cv2.matchTemplate(field[y0:y0 + th + 2 * sy, x0:x0 + tw + 2 * sx], tpl.weighted[False],
+                                    cv2.TM_CCORR)
+            den = cv2.matchTemplate(energy[y0:y0 + th + 2 * sy, x0:x0 + tw + 2 * sx], tpl.mask[False], cv2.TM_CCORR)
+            j = int(np.argmax(num / np.sqrt(np.maximum(den, 1e-6))))
+            offsets[aid] = (j // num.shape[1] - sy, j % num.shape[1] - sx)
+        # 2. every candidate, scale and heading near that position (+-1 px): small matrix products over the
+        #    3 x 3 windows (strided views, no per-window calls)
+        fs, es = field.strides, energy.strides
+        res: dict[str, list] = {}
+        for aid, s, tpl, _d in plans:
+            th, tw = tpl.shape
+            oy, ox = offsets[aid]
+            y0, x0 = (ch - th) // 2 + oy - 1, (cw - tw) // 2 + ox - 1
+            y0, x0 = min(max(y0, 0), ch - th - 2), min(max(x0, 0), cw - tw - 2)
+            win = np.ndarray((3, 3, th, tw, 2), np.float32, field, y0 * fs[0] + x0 * fs[1],
+                             (fs[0], fs[1], fs[0], fs[1], fs[2])).reshape(9, -1)
+            win_e = np.ndarray((3, 3, th, tw), np.float32, energy, y0 * es[0] + x0 * es[1],
+                               (es[0], es[1], es[0], es[1])).reshape(9, -1)
+            under = np.sqrt(np.sqrt(np.maximum(win_e @ tpl.flat_mask, 1e-6)))  # sqrt(|crop under the template|)
+            v = (win @ tpl.flat_weighted) / (under * math.sqrt(max(box_norm, 1e-6)) * tpl.norm)  # (9, 2)
+            for k, flip in enumerate((False, True)):
+                if flip not in headings:
+                    continue
+                j = int(np.argmax(v[:, k]))
+                val = float(v[j, k])
+                r = res.setdefault(aid, [(-2.0, 1.0, 0.0, 0.0), (-2.0, 1.0, 0.0, 0.0)])
+                if val > r[k][0]:
+                    # the template centre's offset from the box centre, in metres (along the front, to the left),
+                    # to a fraction of a pixel: a parabola through the peak and its neighbours
+                    g3 = v[:, k].reshape(3, 3)
+                    py, px = j // 3, j % 3
+                    fx = _parabola_peak(g3[py, 0], g3[py, 1], g3[py, 2]) if px == 1 else 0.0
+                    fy = _parabola_peak(g3[0, px], g3[1, px], g3[2, px]) if py == 1 else 0.0
+                    dx = (x0 + px + fx + (tw - 1) / 2.0 - ccx) * gsd
+                    dy = -(y0 + py + fy + (th - 1) / 2.0 - ccy) * gsd
+                    r[k] = (val, s, dx, dy)
+        out = {}
+        for aid, (nf, fl) in res.items():
+            flip = fl[0] > nf[0]
+            b, o = (fl, nf) if flip else (nf, fl)
+            out[aid] = ShapeScore(aid, b[0], b[1], flip, o[0], (b[2], b[3]))
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Template:
+    weighted: dict  # flipped (bool) -> orientation field x mask, (h, w, 2) float32
+    mask: dict  # flipped -> (h, w) float32
+    norm: float  # |field x mask|
+    shape: tuple[int, int]
+    flat_weighted: np.ndarray  # (h w 2, 2): both headings, flattened
+    flat_mask: np.ndarray  # (h w, 2)
+
+
+def _parabola_peak(a: float, b: float, c: float) -> float:
+    """Sub-pixel position (-0.5 .. 0.5) of the maximum of a parabola through (-1, a), (0, b), (1, c)."""
+    den = a - 2.0 * b + c
+    return float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < -1e-9 else 0.0
+
+
+def _silhouette(library, asset_id: str, n: int, gsd: float, view: np.ndarray) -> np.ndarray:
+    """The asset's footprint seen from above, aligned with its views (n x n at ``gsd``), float32 0/1."""
+    import cv2
+
+    a = library.asset(asset_id)
+    mask = np.zeros((n, n), np.uint8)
+    if getattr(a, "mesh_path", None) is not None:
+        mesh = library.mesh(asset_id)
+        v = np.asarray(mesh.vertices)
+        b = np.asarray(mesh.bounds)
+        cx, cy = 0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1])
+        col = (v[:, 0] - cx) / gsd + n / 2.0 - 0.5
+        row = n / 2.0 - (v[:, 1] - cy) / gsd - 0.5
+        pts = np.round(np.stack([col, row], 1) * 16).astype(np.int32)
+        for tri in pts[np.asarray(mesh.faces)]:  # one by one: fillPoly would cancel overlapping faces
+            cv2.fillConvexPoly(mask, tri, 1, lineType=cv2.LINE_8, shift=4)
+    else:  # thumbnail-only asset: segment the view (no shadows in views)
+        from .assets.embed import object_mask
+
+        mask = object_mask(view).astype(np.uint8)
+    return mask.astype(np.float32)

@@ -591,6 +591,26 @@ class Library:
         except InputError as exc:
             raise LibraryError(f"asset {asset_id!r}: view {p} is missing or unreadable; rebuild the library") from exc
 
+    def views_on(self, asset_id: str, background: str) -> list[np.ndarray]:
+        """Every stored view of the asset on ``background`` (lightings and repainted copies), all at
+        ``view_gsd_m``; falls back to the views on the other background when none match."""
+        self.asset(asset_id)  # a clear error for an unknown id
+        rec = self.doc["assets"][self._by_id[asset_id]]
+        files = [v["file"] for v in rec.get("views", []) + rec.get("paint_views", []) if v["background"] == background]
+        if not files:
+            files = [v["file"] for v in rec.get("views", [])]
+        out = []
+        for f in files:
+            try:
+                img = read_png(self.root / f)
+            except InputError as exc:
+                raise LibraryError(f"asset {asset_id!r}: view {self.root / f} is missing or unreadable; rebuild the "
+                                   "library") from exc
+            out.append(img[:, :, :3] if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2))
+        if not out:
+            raise LibraryError(f"asset {asset_id!r} has no views in {self.root}; rebuild the library")
+        return out
+
     def top_view(self, asset_id: str, background: str = "water") -> tuple[np.ndarray, float]:
         """The noon-light view on ``background`` (what the matcher compares a crop's heading against)."""
         return self.view(asset_id, 1, background)

@@ -6,8 +6,10 @@
 
 Retrieval queries are renders of library assets at a random yaw, a random lighting (sun, water colour,
 haze), a random background (water or ground) and a random GSD in 0.05-0.3 m, cropped like the matcher
-crops detections (1.5 x the object's size); plus, when ``coastforge.synth`` is available, crops of the
-objects of synthetic benchmark scenes. Build time: a 159-asset library (models repeated with slightly
+crops detections (1.5 x the object's size); results are also split by the object's length in pixels.
+When ``coastforge.synth`` is available: crops of the objects of synthetic benchmark scenes (embedding
+top-1, where random car/boat paint defeats colour), and the matcher itself (embedding + shape fit + size,
+``coastforge.matching``) on the scenes' truth boxes, per category and GSD. Build time: a 159-asset library (models repeated with slightly
 different real sizes, so every one is rendered) x 6 views, rendered, embedded and indexed.
 """
 
@@ -49,35 +51,75 @@ def render_queries(lib, per_asset: int, seed: int, gsd_range=(0.05, 0.3)):
     return out
 
 
-def synth_queries(lib, seed: int, presets=("marina", "pier_parking"), gsds=(0.1, 0.2), size_m: float = 100.0):
-    """Crops of the boats, vehicles and buoys of synthetic benchmark levels (rendered with the starter kit),
-    cut like the matcher cuts detections; only objects whose asset is in ``lib``. Empty (with the reason)
-    when ``coastforge.synth`` is unavailable."""
+def synth_levels(seed: int, presets=("marina", "pier_parking"), gsds=(0.1, 0.2), size_m: float = 100.0):
+    """Rendered synthetic benchmark levels as (rgb, gsd, scene objects) per preset and GSD; empty (with the
+    reason) when ``coastforge.synth`` is unavailable."""
     try:
         from ..synth import synthesize_level
         from ..synth_render import mesh_source, render_level
     except ImportError as exc:
         return [], f"coastforge.synth is not available ({exc})"
-    from ..matching import crop_rotated
-
     out = []
     meshes = mesh_source(None)
     for i, preset in enumerate(presets):
         level = synthesize_level(preset, seed + i, size_m=size_m)
-        scene = level.scene
         for g in gsds:
             rgb = render_level(level, meshes, g, seed + i)
-            h, w = rgb.shape[:2]
-            gsd = scene.extent_m[0] / w
-            for o in scene.objects:
-                if o.category == "pier" or o.asset_id not in lib:
-                    continue
-                col = o.x_m / gsd + w / 2.0
-                row = h / 2.0 - o.y_m / gsd
-                side = int(math.ceil(max(o.length_m, o.width_m) * 1.5 / gsd)) + 4
-                crop = crop_rotated(rgb, col, row, 0.0, side, side, 1.0)
-                out.append((crop, gsd, o.asset_id, lib.asset(o.asset_id).category))
+            out.append((rgb, level.scene.extent_m[0] / rgb.shape[1], level.scene.objects))
     return out, ""
+
+
+def synth_queries(lib, levels):
+    """Crops of the boats, vehicles and buoys of rendered synthetic levels, cut like the matcher cuts
+    detections (axis-aligned here: the embedder is rotation-invariant); only objects whose asset is in ``lib``."""
+    from ..matching import crop_rotated
+
+    out = []
+    for rgb, gsd, objects in levels:
+        h, w = rgb.shape[:2]
+        for o in objects:
+            if o.category == "pier" or o.asset_id not in lib:
+                continue
+            col = o.x_m / gsd + w / 2.0
+            row = h / 2.0 - o.y_m / gsd
+            side = int(math.ceil(max(o.length_m, o.width_m) * 1.5 / gsd)) + 4
+            crop = crop_rotated(rgb, col, row, 0.0, side, side, 1.0)
+            out.append((crop, gsd, o.asset_id, lib.asset(o.asset_id).category))
+    return out
+
+
+def synth_matching(lib, levels, match_config=None) -> dict:
+    """What ``generate`` does with perfect boxes: the matcher (embedding + shape fit + size) on the truth
+    boxes (centre, yaw, length, width) of the levels' boats, vehicles and buoys; top-1 asset accuracy and
+    how often the final heading is flipped, per category and GSD."""
+    from ..config import MatchConfig
+    from ..matching import match_detections
+    from ..types import Detection, GeoImage, Grid
+
+    cfg = match_config or MatchConfig()
+    stats: dict = defaultdict(lambda: [0, 0, 0])
+    t_total, n_total = 0.0, 0
+    for rgb, gsd, objects in levels:
+        h, w = rgb.shape[:2]
+        objs = [o for o in objects if o.category in MATCHED]
+        dets = [Detection(o.category, 1.0, o.x_m / gsd + w / 2.0 - 0.5, h / 2.0 - o.y_m / gsd - 0.5, o.length_m / gsd,
+                          o.width_m / gsd, o.yaw_deg, True, 1.0) for o in objs]
+        t0 = time.perf_counter()
+        decisions = match_detections(GeoImage(rgb, Grid(w, h, gsd)), dets, lib, cfg, seed=0)
+        t_total += time.perf_counter() - t0
+        n_total += len(dets)
+        for dec in decisions:
+            o = objs[dec.index]
+            key = f"{o.category}@{gsd:.2f}"
+            stats[key][0] += 1
+            stats[key][1] += dec.asset_id == o.asset_id
+            stats[key][2] += abs((dec.yaw_deg - o.yaw_deg + 180.0) % 360.0 - 180.0) > 90.0 and o.category != "buoy"
+    n = sum(v[0] for v in stats.values())
+    return {"objects": n, "top1_asset": round(sum(v[1] for v in stats.values()) / max(1, n), 4),
+            "per_category": {k: {"n": v[0], "asset": round(v[1] / v[0], 3), "heading_flipped": v[2]}
+                             for k, v in sorted(stats.items())},
+            "ms_per_object": round(1000 * t_total / max(1, n_total), 2),
+            "note": "truth boxes; the embedding-only figure above ignores shape, paint and size priors"}
 
 
 def retrieval(lib, queries) -> dict:
@@ -103,6 +145,14 @@ def retrieval(lib, queries) -> dict:
         if top != aid:
             confusions[f"{aid}->{top}"] += 1
     n = len(queries)
+    # tiny objects (a 0.5 m grass tuft at 0.3 m/px is 2 px) carry little more than a colour: report apart
+    by_px: dict = defaultdict(lambda: [0, 0, 0])
+    for (img, gsd, aid, cat), h in zip(queries, hits):
+        top = h[0][0] if h else None
+        band = ">=8 px long" if max(lib.asset(aid).dims_m[:2]) / gsd >= 8 else "<8 px long"
+        by_px[band][0] += 1
+        by_px[band][1] += top == aid
+        by_px[band][2] += bool(top) and lib.asset(top).category == cat
     # what the matcher does: boats, vehicles and buoys, searched within the detected category
     matched = [i for i, q in enumerate(queries) if q[3] in MATCHED]
     within = 0
@@ -119,6 +169,8 @@ def retrieval(lib, queries) -> dict:
         "queries": n, "top1_asset": round(ok_asset / n, 4), "top1_category": round(ok_cat / n, 4),
         "per_category": {c: {"n": v[0], "asset": round(v[1] / v[0], 3), "category": round(v[2] / v[0], 3)}
                          for c, v in sorted(per_cat.items())},
+        "by_object_pixels": {b: {"n": v[0], "asset": round(v[1] / v[0], 3), "category": round(v[2] / v[0], 3)}
+                             for b, v in sorted(by_px.items())},
         "ms_per_query": round(1000 * (t_embed + t_search) / n, 3),
         "ms_embed_per_query": round(1000 * t_embed / n, 3),
         "top_confusions": dict(sorted(confusions.items(), key=lambda t: -t[1])[:10]),
@@ -213,10 +265,13 @@ def main(argv=None) -> None:
         report["rendered_queries"]["ms_single_query"] = single_query_ms(lib, queries)
         if not args.skip_synth:
             try:
-                sq, why = synth_queries(lib, args.seed)
+                levels, why = synth_levels(args.seed)
             except Exception as exc:  # another stage's code: report, do not lose the other figures
-                sq, why = [], f"synthetic crops failed: {type(exc).__name__}: {exc}"
+                levels, why = [], f"synthetic levels failed: {type(exc).__name__}: {exc}"
+            sq = synth_queries(lib, levels) if levels else []
             report["synthetic_crops"] = retrieval(lib, sq) if sq else {"queries": 0, "why": why}
+            if levels:
+                report["synthetic_matcher_truth_boxes"] = synth_matching(lib, levels)
         if not args.skip_build:
             report["build"] = build_benchmark(Path(args.models) if args.models else None, args.build_assets,
                                               args.workers, args.seed)
