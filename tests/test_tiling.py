@@ -229,6 +229,46 @@ def test_merge_cut_fragments_joins_collinear_pieces_only():
     assert joined.cx_px == pytest.approx(132.5, abs=0.01)
 
 
+def _random_boxes(n, size, seed, cats=("boat", "vehicle")):
+    rng = np.random.default_rng(seed)
+    return [Detection(str(rng.choice(cats)), float(rng.random()), float(rng.random() * size),
+                      float(rng.random() * size), float(rng.uniform(10, 60)), float(rng.uniform(4, 15)),
+                      float(rng.uniform(-180, 180))) for _ in range(n)]
+
+
+def test_indexed_nms_equals_rotated_nms():
+    from coastforge.detection.nms import rotated_nms
+
+    dets = _random_boxes(600, 900, seed=3)  # dense: many overlaps, both categories
+    ref = rotated_nms(dets, 0.3, class_aware=True, ioa_threshold=0.6)
+    got = tiling.indexed_nms(dets, 0.3, ioa_threshold=0.6, cell_px=64.0)  # boxes span several cells
+    assert [id(d) for d in got] == [id(d) for d in ref]
+    assert 0 < len(got) < len(dets)
+    assert tiling.indexed_nms([]) == []
+
+
+def test_grouped_fragment_merge_equals_the_global_merge():
+    rng = np.random.default_rng(5)
+    pieces = []
+    for _k in range(25):  # broken walkways (three pieces each, slightly overlapping) and lone fingers
+        x0, y0 = rng.random(2) * 3000
+        yaw = float(rng.choice([0.0, 90.0, 37.0]))
+        ux, uy = np.cos(np.radians(yaw)), -np.sin(np.radians(yaw))
+        for m in range(3):
+            pieces.append(Detection("pier_walkway", float(rng.random()), float(x0 + ux * m * 28.5),
+                                    float(y0 + uy * m * 28.5), 30.0, 8.0, yaw))
+        pieces.append(Detection("pier_finger", 0.5, float(x0 + 10), float(y0 + 10), 20.0, 3.0, yaw + 90.0))
+    rng.shuffle(pieces)
+    grouped = tiling.merge_cut_fragments(pieces)
+    ref = tiling._merge_fragment_group(list(pieces), 6.0)  # the all-pairs loop over everything at once
+
+    def key(d):
+        return (d.category, round(d.cx_px, 3), round(d.cy_px, 3), round(d.length_px, 3), round(d.width_px, 3))
+
+    assert sorted(map(key, grouped)) == sorted(map(key, ref))
+    assert len(grouped) < len(pieces)
+
+
 def test_detect_tiled_classical_finds_the_same_boats(scene_png):
     from coastforge.detection import detect
 
@@ -304,3 +344,34 @@ def test_piers_tiled_matches_build_piers():
     d = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1))
     assert abs(len(objs) - len(full.objects)) <= 2
     assert (d.min(1) < 0.5).mean() > 0.95 and (d.min(0) < 0.5).mean() > 0.95
+
+
+def test_generate_tiled_writes_the_scene_contract(scene_png, tmp_path):
+    """The whole tiled generate on a 600 px image in 2 x 2 tiles with a 300 px scene grid: the scene rasters
+    are on the coarse grid, detections stay in input pixels, side rasters and the World-Partition tiles
+    (through the export registry) are written."""
+    import json
+
+    from coastforge.fsio import read_png
+    from coastforge.pipeline import GenerateRequest
+    from coastforge.scene import load_scene
+
+    out = tmp_path / "tiled"
+    req = GenerateRequest(image=str(scene_png), out=str(out), gsd_m=0.2, report=False, exports=("ue5_tiles",))
+    res = tiling.generate_tiled(req, Config(), tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
+    scene = load_scene(res.scene_path)
+    assert scene.height.shape == scene.classes.shape == (300, 300)
+    assert scene.extent_m == pytest.approx((120.0, 120.0)) and scene.gsd_m == pytest.approx(0.2)
+    prov = json.loads(res.scene_path.read_text())["provenance"]
+    assert prov["tiled"]["scene_grid_px"] == [300, 300] and prov["input"]["size_px"] == [600, 600]
+    assert {"cleaned", "segmentation", "terrain_outputs", "pcg", "scene_rasters"} <= set(prov["background_s"])
+    for rel in ("cleaned.png", "segmentation/classes.png", "segmentation/weights/water.png", "segmentation/biome.png",
+                "terrain_outputs/hillshade.png", "terrain/height.tif", "vegetation.csv", "detections.json"):
+        assert (out / rel).is_file(), rel
+    assert read_png(out / "cleaned.png").shape == (300, 300, 3)
+    dets = json.loads((out / "detections.json").read_text())
+    dets = dets.get("detections", dets) if isinstance(dets, dict) else dets
+    assert dets and max(d["cx_px"] for d in dets) > 300  # full-resolution input pixels, not scene-grid ones
+    spec = json.loads((out / "ue5_tiles" / "landscape_tiles.json").read_text())
+    assert spec["tile_list"] and res.exports["ue5_tiles"]
+    assert sum(v for k, v in res.n_objects.items() if k != "vegetation") > 0

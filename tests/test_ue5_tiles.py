@@ -97,3 +97,38 @@ def test_explicit_tile_grid_and_bad_input():
     with pytest.raises(InputError, match="tiles"):
         export_ue5_tiles(scene, tile_size=127, tiles=(0, 2))
     assert 1009 in LANDSCAPE_SIZES
+
+
+def test_registered_as_an_export_format(tmp_path):
+    """`ue5_tiles` is a format like the others: listed by the registry, accepted by parse_formats and
+    written by export_scene under DIR/ue5_tiles/ (refused without overwrite the second time)."""
+    from coastforge import registry
+    from coastforge.errors import OutputExistsError
+    from coastforge.export import FORMATS, export_scene, parse_formats
+
+    assert "ue5_tiles" in FORMATS and "ue5_tiles" in [s.name for s in registry.specs("export")]
+    assert parse_formats("ue5,ue5_tiles") == ["ue5", "ue5_tiles"]
+    scene = _scene(260, 260)
+    written = export_scene(scene, ["ue5_tiles"], tmp_path)
+    paths = {p.relative_to(tmp_path / "ue5_tiles").as_posix() for p in written["ue5_tiles"]}
+    spec = json.loads((tmp_path / "ue5_tiles" / "landscape_tiles.json").read_text())
+    # the registry calls it with the exporters' signature: default tile size, one tile covers 260 samples
+    assert spec["tiles"] == [1, 1] and "heightmap/harbor_x0_y0.png" in paths
+    h = cv2.imread(str(tmp_path / "ue5_tiles" / "heightmap" / "harbor_x0_y0.png"), cv2.IMREAD_UNCHANGED)
+    assert h.dtype == np.uint16 and h.shape == (1009, 1009)
+    with pytest.raises(OutputExistsError):
+        export_scene(scene, ["ue5_tiles"], tmp_path)
+
+
+def test_cli_export_ue5_tiles(tmp_path):
+    from click.testing import CliRunner
+
+    from coastforge.cli import cli
+    from coastforge.scene import save_scene
+
+    save_scene(_scene(200, 200, name="bay"), tmp_path / "scene")
+    res = CliRunner().invoke(cli, ["export", str(tmp_path / "scene"), "--format", "ue5_tiles",
+                                    "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "out" / "ue5_tiles" / "heightmap" / "bay_x0_y0.r16").is_file()
+    assert (tmp_path / "out" / "ue5_tiles" / "weightmaps" / "Water_x0_y0.png").is_file()

@@ -81,29 +81,33 @@ def prepare_output_dir(path: str | os.PathLike, overwrite: bool) -> Path:
     return path
 
 
-def png_bytes(array: np.ndarray, compression: int = 1) -> bytes:
+def png_bytes(array: np.ndarray, compression: int = 1, fast_filter: bool = True) -> bytes:
     """A uint8/uint16 gray, RGB or RGBA array (RGB order) encoded as PNG.
 
     Compression level 1 (of 9): about 4x faster than OpenCV's default for ~15 % larger files; the
-    pipeline writes a dozen full-size rasters per scene."""
+    pipeline writes a dozen full-size rasters per scene. ``fast_filter``: the "sub" row filter only
+    instead of libpng's per-row choice of all five (half the CPU again, ~3 % larger files)."""
     import cv2
 
-    a = np.ascontiguousarray(array)
+    a = np.asarray(array)
     if a.dtype not in (np.uint8, np.uint16):
         raise TypeError(f"PNG needs uint8 or uint16, got {a.dtype}")
     if a.ndim == 3 and a.shape[2] == 3:
-        a = a[:, :, ::-1]
+        a = cv2.cvtColor(np.ascontiguousarray(a), cv2.COLOR_RGB2BGR)  # one pass, not a strided copy
     elif a.ndim == 3 and a.shape[2] == 4:
-        a = a[:, :, [2, 1, 0, 3]]
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(a), [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
+        a = cv2.cvtColor(np.ascontiguousarray(a), cv2.COLOR_RGBA2BGRA)
+    params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression)]
+    if fast_filter and hasattr(cv2, "IMWRITE_PNG_FILTER"):  # OpenCV >= 4.10
+        params += [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB]
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(a), params)
     if not ok:  # pragma: no cover - cv2 fails only on impossible shapes
         raise OSError("could not encode a PNG")
     return buf.tobytes()
 
 
-def write_png(path: str | os.PathLike, array: np.ndarray, compression: int = 1) -> Path:
+def write_png(path: str | os.PathLike, array: np.ndarray, compression: int = 1, fast_filter: bool = True) -> Path:
     """Write a uint8/uint16 gray or RGB(A) array as PNG, atomically. RGB arrays are in RGB order."""
-    return atomic_write_bytes(path, png_bytes(array, compression))
+    return atomic_write_bytes(path, png_bytes(array, compression, fast_filter))
 
 
 def write_jpeg(path: str | os.PathLike, rgb: np.ndarray, quality: int = 92) -> Path:
@@ -129,15 +133,19 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
-def write_geotiff(path: str | os.PathLike, array: np.ndarray, transform, crs=None, nodata=None) -> Path:
-    """Write a (H, W) or (B, H, W) array as a compressed GeoTIFF, atomically."""
+def write_geotiff(path: str | os.PathLike, array: np.ndarray, transform, crs=None, nodata=None,
+                  zlevel: int = 1) -> Path:
+    """Write a (H, W) or (B, H, W) array as a compressed GeoTIFF, atomically.
+
+    Deflate (readable everywhere) at ``zlevel`` 1 of 9: half the CPU of GDAL's default level 6 for ~5 %
+    larger files."""
     import rasterio
     from affine import Affine
 
     a = array if array.ndim == 3 else array[None]
     profile = dict(
         driver="GTiff", width=a.shape[2], height=a.shape[1], count=a.shape[0], dtype=str(a.dtype),
-        transform=Affine(*transform), crs=crs, compress="deflate", nodata=nodata,
+        transform=Affine(*transform), crs=crs, compress="deflate", zlevel=int(zlevel), nodata=nodata,
         # the floating-point predictor makes smooth height maps compress several times better
         predictor=3 if np.issubdtype(a.dtype, np.floating) else 2,
     )

@@ -22,7 +22,7 @@ from . import __version__
 from .classes import WATER
 from .config import Config
 from .fsio import atomic_write_text, prepare_output_dir
-from .scene import Scene, save_scene
+from .scene import Scene, save_scene, save_scene_rasters
 from .types import ClassMap, Detection, GeoImage
 
 Progress = Callable[[str, float], None]  # (stage name, fraction done)
@@ -55,15 +55,17 @@ class GenerateResult:
 class _Timer:
     def __init__(self, progress: Progress | None):
         self.t: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}  # the calling thread's CPU time per stage (wall minus waiting for a core)
         self.progress = progress
 
     @contextmanager
     def stage(self, name: str):
         if self.progress:
             self.progress(name, 0.0)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         yield
         self.t[name] = round(time.perf_counter() - t0, 3)
+        self.cpu[name] = round(time.thread_time() - c0, 3)
         if self.progress:
             self.progress(name, 1.0)
 
@@ -188,42 +190,55 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     with timer.stage("read"):
         image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
         grid = image.grid
-    with timer.stage("library"):
-        library = _load_library(req.library)
-    with timer.stage("segment"):
-        class_map = segment(image, config.segment, seed=seed)
-    with timer.stage("detect"):
-        dets = detect(image, config.detect, class_map=class_map, seed=seed)
-    with timer.stage("clean"):
-        class_map = fill_under_objects(class_map, dets)
-        cleaned = _clean(image, dets, class_map, seed)
-    with timer.stage("terrain"):
-        terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
-        height: HeightMap = terrain.height
-    with timer.stage("match"):
-        decisions = match_detections(image, dets, library, config.match, seed)
-        objects = place_decisions(decisions, dets, library, grid, config, height)
-    with timer.stage("piers"):
-        walk, finger = _pier_assets(library)
-        pier_report: dict = {"n_structures": 0}
-        if walk is not None:
-            pr = build_piers(dets, class_map, walk, finger, config.piers)
-            objects.extend(pr.objects)
-            pier_report = pr.report
-    with timer.stage("vegetation"):
-        veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library), objects, config.vegetation, seed)
-    with timer.stage("write"):
-        scene = Scene(
-            name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
-            crs=grid.crs, transform=grid.transform, height=height.z_m.astype(np.float32),
-            classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
-            provenance=scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets,
-                                        objects, veg.vegetation, pier_report, decisions))
-        _write_stage_outputs(out, image, cleaned, class_map, dets, terrain, veg)
+    # Independent work runs beside the main chain (segment → detect → terrain → piers → placement →
+    # vegetation): the library loads while segmentation and detection run; matching (it needs the library
+    # and the detections, not the terrain) runs beside terrain and piers; the cleaned image is only an
+    # output; every side raster is written as soon as its stage is done.
+    with _Background() as bg:
+        bg.submit("library", _load_library, req.library)
+        with timer.stage("segment"):
+            class_map = segment(image, config.segment, seed=seed)
+        with timer.stage("detect"):
+            dets = detect(image, config.detect, class_map=class_map, seed=seed)
+        with timer.stage("clean"):
+            class_map = fill_under_objects(class_map, dets)
+        bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed))
+        _write_segment_outputs(bg, out, image, class_map, dets, config, seed)
+        with timer.stage("terrain"):
+            terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
+            height: HeightMap = terrain.height
+        _write_terrain_outputs(bg, out, terrain)
+        with timer.stage("library"):  # the time the chain waited for the library, not its load time
+            library = bg.result("library")
+        with timer.stage("piers"):
+            walk, finger = _pier_assets(library)
+            pier_report: dict = {"n_structures": 0}
+            pier_objects: list = []
+            if walk is not None:
+                pr = build_piers(dets, class_map, walk, finger, config.piers)
+                pier_objects, pier_report = list(pr.objects), pr.report
+        with timer.stage("match"):  # waiting for the matcher, then placement on the terrain
+            decisions = bg.result("match")
+            objects = place_decisions(decisions, dets, library, grid, config, height) + pier_objects
+        with timer.stage("vegetation"):
+            veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library), objects, config.vegetation,
+                          seed)
+        with timer.stage("write"):
+            scene = Scene(
+                name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
+                crs=grid.crs, transform=grid.transform, height=height.z_m.astype(np.float32),
+                classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
+                provenance=scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets,
+                                            objects, veg.vegetation, pier_report, decisions))
+            _write_vegetation_outputs(bg, out, veg)
+            bg.submit("scene_rasters", save_scene_rasters, scene, out)
+            bg.wait()  # re-raises the first failed job
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)
-    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
-    scene_path = save_scene(scene, out)  # complete before exporting: exporters read the folder
+    # what ran beside the main chain (CPU contention makes the stages above slower by about this much)
+    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings, "stage_cpu_s": dict(timer.cpu),
+                                       "background_s": bg.timings()})
+    scene_path = save_scene(scene, out, rasters=False)  # rasters are written: the JSON last
     exports: dict = {}
     if req.exports:
         from .export import export_scene
@@ -259,24 +274,73 @@ def _clean(image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: in
     return clean_image(image, transient, class_map, seed)
 
 
-def _write_stage_outputs(out: Path, image: GeoImage, cleaned: np.ndarray, class_map: ClassMap, dets, terrain, veg):
-    """The stages' side outputs (previews, paint-layer weights, biome map, hillshade, cross-sections). They are
-    independent files and PNG encoding releases the GIL, so they are written concurrently."""
-    from concurrent.futures import ThreadPoolExecutor
+class _Background:
+    """A small thread pool for work beside the main chain. NumPy, OpenCV and zlib release the GIL, so on
+    two cores the side rasters are encoded while the next stage computes. ``result``/``wait`` re-raise a
+    job's exception; leaving the block waits for every job (nothing is left writing behind the caller)."""
 
+    def __init__(self, workers: int = 3):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="coastforge-bg")
+        self._jobs: dict = {}
+        self._t: dict[str, dict] = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._pool.shutdown(wait=True, cancel_futures=exc[0] is not None)
+        return False
+
+    def submit(self, name: str, fn, *args, **kw) -> None:
+        def timed():
+            t0, c0 = time.perf_counter(), time.thread_time()
+            try:
+                return fn(*args, **kw)
+            finally:  # wall and this thread's CPU time: their gap is time spent waiting for a core
+                self._t[name] = {"wall": round(time.perf_counter() - t0, 3), "cpu": round(time.thread_time() - c0, 3)}
+
+        self._jobs[name] = self._pool.submit(timed)
+
+    def result(self, name: str):
+        return self._jobs[name].result()
+
+    def wait(self) -> None:
+        for f in list(self._jobs.values()):
+            f.result()
+
+    def timings(self) -> dict[str, dict]:
+        return dict(sorted(self._t.items()))
+
+
+def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,
+                           seed: int) -> None:
+    """detections.json now; the cleaned image (transient objects removed: an output only, no later stage
+    reads it) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
     from .detection import detections_to_json
     from .fsio import write_png
     from .segmentation.outputs import write_segmentation
-    from .terrain.outputs import write_terrain_outputs
 
     g = image.grid
     atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
-    jobs = [
-        lambda: write_png(out / "cleaned.png", cleaned),
-        lambda: write_segmentation(out / "segmentation", class_map, image),
-        lambda: write_terrain_outputs(out / "terrain_outputs", terrain),
-        *[(lambda n=name, m=mask: write_png(out / "pcg" / f"{n}.png", m)) for name, mask in veg.masks.items()],
-    ]
-    with ThreadPoolExecutor(max_workers=3) as pool:
-        for f in [pool.submit(j) for j in jobs]:
-            f.result()  # re-raise the first failure
+    bg.submit("cleaned", lambda: write_png(out / "cleaned.png", _clean(image, dets, class_map, seed)))
+    bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, image, config.segment)
+
+
+def _write_terrain_outputs(bg: _Background, out: Path, terrain) -> None:
+    """Hillshade, shore types and cross-sections, in the background."""
+    from .terrain.outputs import write_terrain_outputs
+
+    bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain)
+
+
+def _write_vegetation_outputs(bg: _Background, out: Path, veg) -> None:
+    """The 8-bit PCG masks, one file per rule."""
+    from .fsio import write_png
+
+    def masks():
+        for name, mask in veg.masks.items():
+            write_png(out / "pcg" / f"{name}.png", mask)
+
+    bg.submit("pcg", masks)

@@ -33,6 +33,8 @@ BACKENDS: tuple[BackendSpec, ...] = (
     # segmentation
     BackendSpec("segment", "classical", _P + "segmentation.classical:ClassicalSegmenter", (), None, "",
                 "colour indices, texture, superpixels, self-trained per-image classifier", True),
+    BackendSpec("segment", "learned", _P + "segmentation.learned:LearnedSegmenter", ("onnxruntime",), None, "",
+                "small U-Net trained by coastforge on its own renders (shipped ONNX)"),
     BackendSpec("segment", "labels", _P + "segmentation.labels:LabelsSegmenter", (), None,
                 "--labels FILE and a mapping file", "your own class raster, mapped to our classes"),
     BackendSpec("segment", "onnx", _P + "segmentation.onnx_backend:OnnxSegmenter", ("onnxruntime",), None,
@@ -68,6 +70,8 @@ BACKENDS: tuple[BackendSpec, ...] = (
     BackendSpec("export", "usd", _P + "export.usd:export_usd", ("pxr",), "usd", "",
                 "USD stage for Isaac Sim / OceanSim", True),
     BackendSpec("export", "sdf", _P + "export.sdf:export_sdf", (), None, "", "Gazebo / Project DAVE world", True),
+    BackendSpec("export", "ue5_tiles", _P + "export.ue5_tiles:export_ue5_tiles", (), None, "",
+                "Unreal 5 World-Partition landscape tiles (_x<i>_y<j>) for large terrains"),
     # batches
     BackendSpec("batch", "dask", _P + "batch:run_batch", ("dask", "distributed"), "dask", "",
                 "batches of scenes on a dask.distributed cluster", True),

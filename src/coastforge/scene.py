@@ -360,16 +360,24 @@ def save_scene(scene: Scene, folder: str | Path, filename: str = "scene.json", r
     """Write scene.json (or ``filename``, e.g. truth.json) and its rasters into ``folder``.
 
     Each file is written atomically; the JSON last, so a scene file always points at complete rasters.
-    ``rasters=False`` rewrites only the JSON (e.g. to add timings to a scene already saved)."""
+    ``rasters=False`` rewrites only the JSON (e.g. to add timings to a scene already saved, or after
+    ``save_scene_rasters``)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     text = dumps(scene)  # validate serialisability before touching any file
     scene_from_dict(json.loads(text))
-    grid = scene.grid
-    if not rasters:
-        return atomic_write_text(folder / filename, text)
+    if rasters:
+        save_scene_rasters(scene, folder)
+    return atomic_write_text(folder / filename, text)
+
+
+def save_scene_rasters(scene: Scene, folder: str | Path) -> None:
+    """Write the files scene.json points at (height GeoTIFF, class PNG, vegetation CSV), without the JSON.
+    ``generate`` writes them in the background while it finishes the scene, then ``save_scene(...,
+    rasters=False)``."""
+    folder = Path(folder)
     if scene.height is not None:
-        tr = scene.transform if scene.transform else grid.scene_transform()
+        tr = scene.transform if scene.transform else scene.grid.scene_transform()
         write_geotiff(_resolve(folder, scene.terrain_paths["height"], "terrain.height"),
                       scene.height.astype(np.float32), tr, crs=scene.crs)
     if scene.classes is not None:
@@ -377,4 +385,3 @@ def save_scene(scene: Scene, folder: str | Path, filename: str = "scene.json", r
     if scene.vegetation_ref is not None:
         atomic_write_text(_resolve(folder, scene.vegetation_ref, "vegetation"),
                           vegetation_csv(scene.vegetation or Vegetation.empty()))
-    return atomic_write_text(folder / filename, text)

@@ -293,9 +293,78 @@ def _axis_extent(d: Detection, ux: float, uy: float, cx: float, cy: float) -> tu
     return s - d.length_px / 2.0, s + d.length_px / 2.0, lat
 
 
+def _bbox(d: Detection) -> np.ndarray:
+    c = d.corners_px()
+    return np.concatenate([c.min(0), c.max(0)])
+
+
+class _GridIndex:
+    """Axis-aligned boxes hashed into square cells, for "which boxes may touch this one" in O(1) per query
+    (the all-pairs checks were quadratic in the number of boxes, i.e. in the image area)."""
+
+    def __init__(self, cell_px: float = 256.0):
+        self.cell = float(cell_px)
+        self.cells: dict[tuple[int, int], list[int]] = {}
+        self.boxes: list[np.ndarray] = []
+
+    def _keys(self, b: np.ndarray):
+        c = self.cell
+        for gy in range(int(b[1] // c), int(b[3] // c) + 1):
+            for gx in range(int(b[0] // c), int(b[2] // c) + 1):
+                yield gx, gy
+
+    def add(self, b: np.ndarray) -> int:
+        k = len(self.boxes)
+        self.boxes.append(b)
+        for key in self._keys(b):
+            self.cells.setdefault(key, []).append(k)
+        return k
+
+    def query(self, b: np.ndarray, pad: float = 0.0) -> list[int]:
+        """Indices of the added boxes whose bounds overlap ``b`` grown by ``pad``, in insertion order."""
+        q = b + np.array([-pad, -pad, pad, pad])
+        found: set[int] = set()
+        for key in self._keys(q):
+            found.update(self.cells.get(key, ()))
+        return sorted(k for k in found if self.boxes[k][0] <= q[2] and q[0] <= self.boxes[k][2]
+                      and self.boxes[k][1] <= q[3] and q[1] <= self.boxes[k][3])
+
+
 def merge_cut_fragments(dets: list[Detection], angle_tol_deg: float = 6.0) -> list[Detection]:
     """Join collinear, overlapping or touching pieces of one long structure (a pier walkway cut by tile
-    edges) into one box spanning them. Pieces are merged only within a category."""
+    edges) into one box spanning them. Pieces are merged only within a category.
+
+    Pieces can only join when their bounds touch, so the pieces are split into groups of touching bounds
+    (grown by a few pixels and the widest piece, the most a joined box can reach past its pieces) and each
+    group is merged on its own: linear in the number of groups instead of cubic in all pieces."""
+    if len(dets) < 2:
+        return list(dets)
+    pad = 4.0 + max(d.width_px for d in dets)
+    boxes = [_bbox(d) for d in dets]
+    index = _GridIndex(max(256.0, 4 * pad))
+    parent = list(range(len(dets)))
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    for k, b in enumerate(boxes):
+        for j in index.query(b, pad):
+            if dets[j].category == dets[k].category:
+                parent[root(j)] = root(k)
+        index.add(b)
+    groups: dict[int, list[Detection]] = {}
+    for k, d in enumerate(dets):
+        groups.setdefault(root(k), []).append(d)
+    out: list[Detection] = []
+    for g in groups.values():  # dict order: groups in order of their first piece
+        out.extend(_merge_fragment_group(g, angle_tol_deg))
+    return out
+
+
+def _merge_fragment_group(dets: list[Detection], angle_tol_deg: float) -> list[Detection]:
     from .frames import direction_px, wrap_half_deg
 
     pending = list(dets)
@@ -335,6 +404,36 @@ def merge_cut_fragments(dets: list[Detection], angle_tol_deg: float = 6.0) -> li
     return pending
 
 
+def indexed_nms(dets: list[Detection], iou_threshold: float = 0.3, ioa_threshold: float | None = None,
+                cell_px: float = 256.0) -> list[Detection]:
+    """``detection.nms.rotated_nms`` (class-aware) with the kept boxes in a grid index: the same greedy
+    order and tests, so the same result, but each box is compared with the kept boxes near it only
+    (``rotated_nms`` scans every kept box for every box: quadratic in the area of a large image)."""
+    from .detection.nms import polygon_ioa, polygon_iou
+
+    if not dets:
+        return []
+    order = sorted(range(len(dets)), key=lambda i: -dets[i].score)
+    corners = [d.corners_px() for d in dets]
+    index = _GridIndex(cell_px)
+    kept: list[int] = []
+    for i in order:
+        b = np.concatenate([corners[i].min(0), corners[i].max(0)])
+        ok = True
+        for slot in index.query(b):
+            j = kept[slot]
+            if dets[j].category != dets[i].category:
+                continue
+            if polygon_iou(corners[i], corners[j]) > iou_threshold or (
+                    ioa_threshold is not None and polygon_ioa(corners[i], corners[j]) > ioa_threshold):
+                ok = False
+                break
+        if ok:
+            index.add(b)
+            kept.append(i)
+    return [dets[i] for i in kept]
+
+
 def merge_tile_detections(per_tile: list[tuple[Tile, list[Detection]]], width: int, height: int,
                           iou: float = 0.3, ioa: float = 0.6, edge_margin_px: float = 1.5) -> list[Detection]:
     """Detections of all tiles (already in full-image pixels) → one list without duplicates.
@@ -342,8 +441,6 @@ def merge_tile_detections(per_tile: list[tuple[Tile, list[Detection]]], width: i
     Ranking for the rotated NMS: whole boxes beat boxes cut by a tile edge, then boxes whose centre lies in
     their tile's core (the tile that sees the most context around them), then the score. Pier pieces cut
     by tile edges are first joined along their axis (a walkway may be longer than the overlap)."""
-    from .detection.nms import rotated_nms
-
     entries: list[tuple[Detection, bool, bool]] = []  # (detection, cut, centre in core)
     cut_piers: list[Detection] = []
     for t, dets in per_tile:
@@ -363,7 +460,7 @@ def merge_tile_detections(per_tile: list[tuple[Tile, list[Detection]]], width: i
         p = replace(d, score=rank, mask=None)
         back[id(p)] = d
         proxies.append(p)
-    kept = rotated_nms(proxies, iou_threshold=iou, class_aware=True, ioa_threshold=ioa)
+    kept = indexed_nms(proxies, iou_threshold=iou, ioa_threshold=ioa)
     out = [back[id(p)] for p in kept]
     out.sort(key=lambda d: (-d.score, d.cy_px, d.cx_px))
     return out
@@ -566,6 +663,13 @@ def _match_tiled(src: Source, dets: list[Detection], library, config: Config, ti
     return decisions
 
 
+def _tile_progress(progress, stage: str):
+    """Per-tile progress of a stage as ``progress(stage, k / n)`` (strictly between 0 and 1 until the end)."""
+    if progress is None:
+        return None
+    return lambda k, n: progress(stage, min(k / max(n, 1), 0.999))
+
+
 def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, overlap_px: int = 256,
                    scene_max_px: int = 4096):
     """``run_generate`` for images too large to hold: read by windows, segment and detect per tile at full
@@ -573,12 +677,13 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
     from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .pipeline import (GenerateResult, _load_library, _pier_assets, _Timer, assets_by_category,
-                           fill_under_objects, place_decisions, scene_provenance)
-    from .scene import Scene, save_scene
+    from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, _write_vegetation_outputs,
+                           assets_by_category, fill_under_objects, place_decisions, scene_provenance)
+    from .scene import Scene, save_scene, save_scene_rasters
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
     from .terrain import estimate_terrain
+    from .terrain.outputs import write_terrain_outputs
     from .vegetation import scatter
 
     _check_tiling(tile_px, overlap_px)
@@ -596,78 +701,74 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         overview = read_overview(src, sw, sh)
         sgrid = overview.grid
         fx = W / sw
-    with timer.stage("library"):
-        library = _load_library(req.library)
-    with timer.stage("segment"):
-        ids = segment_tiled(src, config=config.segment, tile_px=tile_px, overlap_px=overlap_px, seed=seed)
-    with timer.stage("detect"):
-        # an object is whole in some tile when the overlap is at least half its length
-        det_ov = max(overlap_px, min(tile_px, int(math.ceil(config.detect.max_boat_length_m / 2 / grid.gsd_m)) + 8))
-        dets = detect_tiled(src, config=config.detect, class_ids=ids, tile_px=tile_px, overlap_px=det_ov, seed=seed)
-    with timer.stage("clean"):
-        full_cm = fill_under_objects(ClassMap(ids, grid), dets)
-        del ids
-        s_ids = downsample_classes(full_cm.ids, sw, sh)
-        del full_cm
-        class_map = ClassMap(s_ids, sgrid)
-        s_dets = [scale_detection(d, fx) for d in dets]
-        cleaned = clean_image(overview, [d for d in s_dets if d.category in ("boat", "vehicle", "buoy")],
-                              class_map, seed)
-    with timer.stage("terrain"):
-        terrain = estimate_terrain(class_map, config.terrain, image=overview, dems=req.dems, seed=seed)
-        height: HeightMap = terrain.height
-    with timer.stage("match"):
-        decisions = _match_tiled(src, dets, library, config, tile_px)
-        objects = place_decisions(decisions, dets, library, grid, config, height)
-    with timer.stage("piers"):
-        walk, finger = _pier_assets(library)
-        pier_report: dict = {"n_structures": 0}
-        if walk is not None:
-            pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
-            objects.extend(pier_objects)
-    with timer.stage("vegetation"):
-        veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library), objects, config.vegetation, seed)
-    with timer.stage("write"):
-        scene = Scene(
-            name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
-            # the transform is the scene rasters' (coarser than the input when the image was downsampled)
-            crs=grid.crs, transform=sgrid.transform, height=height.z_m.astype(np.float32),
-            classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
-            provenance=scene_provenance(
-                req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
-                tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
-                       "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m}))
-        write_png(out / "cleaned.png", cleaned)
-        write_segmentation(out / "segmentation", class_map, overview, config.segment)
+    # the library loads beside segmentation and detection; side rasters are written beside the later stages
+    # (see pipeline.run_generate)
+    with _Background() as bg:
+        bg.submit("library", _load_library, req.library)
+        with timer.stage("segment"):
+            ids = segment_tiled(src, config=config.segment, tile_px=tile_px, overlap_px=overlap_px, seed=seed,
+                                progress=_tile_progress(progress, "segment"))
+        with timer.stage("detect"):
+            # an object is whole in some tile when the overlap is at least half its length
+            half_boat_px = int(math.ceil(config.detect.max_boat_length_m / 2 / grid.gsd_m))
+            det_ov = max(overlap_px, min(tile_px, half_boat_px + 8))
+            dets = detect_tiled(src, config=config.detect, class_ids=ids, tile_px=tile_px, overlap_px=det_ov,
+                                seed=seed, progress=_tile_progress(progress, "detect"))
+        with timer.stage("clean"):
+            full_cm = fill_under_objects(ClassMap(ids, grid), dets)
+            del ids
+            s_ids = downsample_classes(full_cm.ids, sw, sh)
+            del full_cm
+            class_map = ClassMap(s_ids, sgrid)
+            s_dets = [scale_detection(d, fx) for d in dets]
         atomic_write_text(out / "detections.json",
                           detections_to_json(dets, grid.gsd_m, (W, H), {"tiled": True, "tile_px": tile_px}))
-        try:
-            from .terrain.outputs import write_terrain_outputs
-
-            write_terrain_outputs(out / "terrain_outputs", terrain)
-        except ImportError:
-            pass
-        for name, m in veg.masks.items():
-            write_png(out / "pcg" / f"{name}.png", m)
+        transient = [d for d in s_dets if d.category in ("boat", "vehicle", "buoy")]
+        bg.submit("cleaned", lambda: write_png(out / "cleaned.png", clean_image(overview, transient, class_map, seed)))
+        bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, overview, config.segment)
+        with timer.stage("terrain"):
+            terrain = estimate_terrain(class_map, config.terrain, image=overview, dems=req.dems, seed=seed)
+            height: HeightMap = terrain.height
+        bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain)
+        with timer.stage("library"):  # the time the chain waited for the library
+            library = bg.result("library")
+        with timer.stage("match"):
+            decisions = _match_tiled(src, dets, library, config, tile_px)
+            objects = place_decisions(decisions, dets, library, grid, config, height)
+        with timer.stage("piers"):
+            walk, finger = _pier_assets(library)
+            pier_report: dict = {"n_structures": 0}
+            if walk is not None:
+                pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
+                objects.extend(pier_objects)
+        with timer.stage("vegetation"):
+            veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library), objects, config.vegetation,
+                          seed)
+        with timer.stage("write"):
+            scene = Scene(
+                name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
+                # the transform is the scene rasters' (coarser than the input when the image was downsampled)
+                crs=grid.crs, transform=sgrid.transform, height=height.z_m.astype(np.float32),
+                classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
+                provenance=scene_provenance(
+                    req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
+                    tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
+                           "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m}))
+            _write_vegetation_outputs(bg, out, veg)
+            bg.submit("scene_rasters", save_scene_rasters, scene, out)
+            bg.wait()
     exports = {}
     if req.exports:
         with timer.stage("export"):
             from .export import export_scene
 
-            fmts = [f for f in req.exports if f != "ue5_tiles"]
-            if fmts:
-                exports = export_scene(scene, fmts, out, overwrite=True, config=config.export, library=library)
-            if "ue5_tiles" in req.exports:
-                # the World-Partition tiles are written here until the export registry knows the format
-                from .export.ue5_tiles import export_ue5_tiles
-                from .fsio import atomic_write_bytes
-
-                exports["ue5_tiles"] = [atomic_write_bytes(out / "ue5_tiles" / rel, data)
-                                        for rel, data in sorted(export_ue5_tiles(scene, None, config.export).items())]
+            exports = export_scene(scene, list(req.exports), out, overwrite=True, config=config.export,
+                                   library=library)
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)
-    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
-    scene_path = save_scene(scene, out)
+    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings, "stage_cpu_s": dict(timer.cpu),
+                                       "background_s": bg.timings()})
+    scene_path = save_scene(scene, out, rasters=False)  # the rasters are written: the JSON last
     report_path = None
     if req.report:
         try:

@@ -101,6 +101,7 @@ class TreePeak:
     def _run(self):
         import psutil
 
+        t0 = time.perf_counter()
         while not self._stop.is_set():
             try:
                 procs = [self.proc] + self.proc.children(recursive=True)
@@ -113,7 +114,9 @@ class TreePeak:
                 self.peak = max(self.peak, rss)
             except psutil.Error:
                 break
-            self._stop.wait(self.every)
+            # listing the process tree costs CPU: sample often at first, then once a second (memory of a long
+            # run grows slowly, and the monitor must not steal the cores it measures)
+            self._stop.wait(self.every if time.perf_counter() - t0 < 30.0 else max(self.every, 1.0))
 
     def stop(self) -> int:
         self._stop.set()
@@ -125,25 +128,46 @@ def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: in
     """Runs in the child process: one tiled generate, figures as JSON on the last line of stdout."""
     import resource
 
-    from ..config import Config
+    from ..config import load_config
     from ..pipeline import GenerateRequest
     from ..tiling import generate_tiled
 
     t0 = time.perf_counter()
 
     def progress(stage: str, frac: float) -> None:
-        # one line per finished stage on stderr: a run stopped early still leaves its figures
+        # one line per finished stage (and per tile of the tiled stages) on stderr: a run stopped early
+        # still leaves its figures, and equal CPU per tile shows the tiled stages are linear in the area
+        if 0.0 < frac < 1.0:
+            ru = resource.getrusage(resource.RUSAGE_SELF)
+            print(json.dumps({"tile": stage, "frac": round(frac, 4), "elapsed_s": round(time.perf_counter() - t0, 2),
+                              "cpu_s": round(ru.ru_utime + ru.ru_stime, 2),
+                              "maxrss_mb": round(ru.ru_maxrss / 1024.0, 1)}), file=sys.stderr, flush=True)
         if frac >= 1.0:
-            mx = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+            ru = resource.getrusage(resource.RUSAGE_SELF)
             print(json.dumps({"stage": stage, "elapsed_s": round(time.perf_counter() - t0, 2),
-                              "maxrss_mb": round(mx, 1)}), file=sys.stderr, flush=True)
+                              "cpu_s": round(ru.ru_utime + ru.ru_stime, 2),
+                              "maxrss_mb": round(ru.ru_maxrss / 1024.0, 1), "load": round(os.getloadavg()[0], 2)}),
+                  file=sys.stderr, flush=True)
 
     req = GenerateRequest(image=image, out=out, overwrite=True, report=False)
-    r = generate_tiled(req, Config(), progress, tile_px=tile_px, overlap_px=overlap_px, scene_max_px=scene_max_px)
+    # the configuration `coastforge generate` runs (the default preset: hybrid detector)
+    r = generate_tiled(req, load_config("default", None, [], None), progress, tile_px=tile_px, overlap_px=overlap_px,
+                       scene_max_px=scene_max_px)
     wall = time.perf_counter() - t0
     ru = resource.getrusage(resource.RUSAGE_SELF)
     print(json.dumps({"wall_s": wall, "maxrss_mb": ru.ru_maxrss / 1024.0, "cpu_s": ru.ru_utime + ru.ru_stime,
                       "timings_s": r.timings_s, "n_objects": r.n_objects}))
+
+
+def _tile_lines(text: str) -> list[dict]:
+    out = []
+    for line in text.splitlines():
+        if line.startswith('{"tile"'):
+            try:
+                out.append(json.loads(line))
+            except json.JSONDecodeError:
+                pass
+    return out
 
 
 def _stage_lines(text: str) -> list[dict]:
@@ -181,19 +205,38 @@ def run_size(work: Path, base: np.ndarray, size: int, tile_px: int, overlap_px: 
     peak = mon.stop()
     wall = time.perf_counter() - t0
     stages = _stage_lines(stderr)
+    per_tile = tile_cpu(_tile_lines(stderr), stages)
     if timed_out or p.returncode != 0:
         why = f"stopped after {timeout_s:.0f} s" if timed_out else (stderr.strip().splitlines() or ["?"])[-1]
-        return {"size": size, "error": why, "wall_s": wall, "peak_tree_mb": peak / 2**20, "stages": stages}
+        return {"size": size, "error": why, "wall_s": wall, "peak_tree_mb": peak / 2**20, "stages": stages,
+                "tile_cpu_s": per_tile}
     fig = json.loads(stdout.strip().splitlines()[-1])
     t = fig["timings_s"]
     proc = sum(v for k, v in t.items() if k not in ("library", "total", "report"))
     return {"size": size, "wall_s": wall, "peak_tree_mb": peak / 2**20, "maxrss_mb": fig["maxrss_mb"],
             "cpu_s": fig["cpu_s"], "processing_s": proc, "no_piers_s": proc - t.get("piers", 0.0),
-            "timings_s": t, "n_objects": fig["n_objects"], "stages": stages}
+            "timings_s": t, "n_objects": fig["n_objects"], "stages": stages, "tile_cpu_s": per_tile}
+
+
+def tile_cpu(tiles: list[dict], stages: list[dict]) -> dict:
+    """Median CPU seconds per tile of each tiled stage (from the cumulative CPU at each tile's end; the
+    first tile of a stage is measured from the previous stage's end), with the tile count."""
+    out: dict = {}
+    ends = {st["stage"]: st.get("cpu_s") for st in stages}
+    order = [st["stage"] for st in stages]
+    for name in dict.fromkeys(t["tile"] for t in tiles):
+        rows = [t for t in tiles if t["tile"] == name]
+        prev_stage = order[order.index(name) - 1] if name in order and order.index(name) > 0 else None
+        start = ends.get(prev_stage) if prev_stage else None
+        cpu = ([start] if start is not None else []) + [t["cpu_s"] for t in rows]
+        d = np.diff(cpu)
+        if d.size:
+            out[name] = {"tiles": len(rows), "median_s": round(float(np.median(d)), 2)}
+    return out
 
 
 def bench_sizes(work: Path, sizes, tile_px: int, overlap_px: int, scene_max_px: int,
-                timeout_s: float | None = None) -> list[dict]:
+                timeout_s: float | None = None, json_path: str | None = None) -> list[dict]:
     base = base_render(work)
     print(f"== tiled generate vs image size (tile {tile_px}, overlap {overlap_px}, scene grid <= {scene_max_px}, "
           f"{GSD_M} m/px) ==", flush=True)
@@ -203,13 +246,23 @@ def bench_sizes(work: Path, sizes, tile_px: int, overlap_px: int, scene_max_px: 
         r = run_size(work, base, s, tile_px, overlap_px, scene_max_px, timeout_s)
         r["load"] = load
         rows.append(r)
+        if json_path:  # after every size: a long run stopped later keeps what it measured
+            Path(json_path).write_text(json.dumps({"sizes": rows}, indent=1, default=str))
         if "error" in r:
             done = ", ".join(f"{st['stage']} at {st['elapsed_s']:.0f} s" for st in r["stages"])
+            for st in r["stages"]:
+                print(f"        {st['stage']:<11} done at {st['elapsed_s']:8.1f} s wall, "
+                      f"{st.get('cpu_s', 0):8.1f} s CPU, maxrss {st['maxrss_mb']:6.0f} MB", flush=True)
             print(f"{s:6d} px  INCOMPLETE after {r['wall_s']:.1f} s ({r['error']}); peak tree RSS "
                   f"{r['peak_tree_mb']:.0f} MB; stages finished: {done or 'none'}", flush=True)
             continue
+        for st in r["stages"]:  # cumulative wall / CPU at the end of each stage
+            print(f"        {st['stage']:<11} done at {st['elapsed_s']:8.1f} s wall, {st.get('cpu_s', 0):8.1f} s CPU, "
+                  f"maxrss {st['maxrss_mb']:6.0f} MB, load {st.get('load', 0):.1f}", flush=True)
+        for name, v in r.get("tile_cpu_s", {}).items():
+            print(f"        {name}: {v['tiles']} tiles, median {v['median_s']:.2f} s CPU per tile", flush=True)
         t = r["timings_s"]
-        print(f"{s:6d} px  wall {r['wall_s']:7.1f} s  processing {r['processing_s']:7.1f} s "
+        print(f"{s:6d} px  wall {r['wall_s']:7.1f} s  cpu {r['cpu_s']:7.1f} s  processing {r['processing_s']:7.1f} s "
               f"(without piers {r['no_piers_s']:7.1f} s)  "
               f"peak tree RSS {r['peak_tree_mb']:7.0f} MB  (maxrss {r['maxrss_mb']:.0f} MB)  load {load:.1f}  "
               f"seg {t.get('segment', 0):.1f} det {t.get('detect', 0):.1f} terrain {t.get('terrain', 0):.1f} "
@@ -219,7 +272,8 @@ def bench_sizes(work: Path, sizes, tile_px: int, overlap_px: int, scene_max_px: 
     for a, b in ((4096, 16384), (4096, 8192), (1024, 4096)):
         if a in ok and b in ok:
             area = (b / a) ** 2
-            for key, what in (("processing_s", "processing"), ("no_piers_s", "processing without piers")):
+            for key, what in (("processing_s", "processing"), ("no_piers_s", "processing without piers"),
+                              ("cpu_s", "CPU")):
                 ratio = ok[b][key] / max(ok[a][key], 1e-9)
                 print(f"{what} time {b}/{a}: {ratio:.2f}x for {area:.0f}x the area "
                       f"(linear within 1.3x: {ratio <= 1.3 * area})")
@@ -310,7 +364,7 @@ def main(argv=None) -> None:
     figures: dict = {}
     if not args.no_sizes:
         sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
-        figures["sizes"] = bench_sizes(work, sizes, args.tile, args.overlap, args.scene_max, args.timeout)
+        figures["sizes"] = bench_sizes(work, sizes, args.tile, args.overlap, args.scene_max, args.timeout, args.json)
     if not args.no_batch:
         figures["batch"] = bench_batch(work, args.batch_n)
     if args.json:

@@ -17,7 +17,7 @@ from .options import overwrite_option, pass_config, size_options
               help="Asset library folder (coastforge library build); default: the bundled starter kit.")
 @click.option("--out", required=True, type=click.Path(), help="Output folder for scene.json and everything else.")
 @click.option("--export", "exports", default="", metavar="LIST",
-              help="Comma-separated export formats: ue5,holoocean,gltf,usd,sdf.")
+              help="Comma-separated export formats: ue5,holoocean,gltf,usd,sdf,ue5_tiles.")
 @click.option("--dem", "dems", multiple=True, type=click.Path(), help="A DEM/bathymetry GeoTIFF to fuse (repeatable).")
 @click.option("--no-report", is_flag=True, help="Do not build report.html.")
 @overwrite_option
@@ -28,10 +28,11 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from ..errors import InputError
+    from ..export import FORMATS
     from ..pipeline import GenerateRequest, run_generate
 
     fmts = tuple(f.strip() for f in exports.split(",") if f.strip())
-    valid = ("ue5", "holoocean", "gltf", "usd", "sdf")
+    valid = tuple(FORMATS)
     bad = [f for f in fmts if f not in valid]
     if bad:
         raise InputError(f"--export {','.join(bad)} is not a known format; valid formats: {', '.join(valid)}")

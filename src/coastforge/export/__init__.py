@@ -30,6 +30,7 @@ FORMATS: dict[str, str] = {
     "gltf": "binary glTF (GLB), y-up",
     "usd": "USD stage (z-up, metres) with per-asset USD files",
     "sdf": "Gazebo / Project DAVE SDF world with heightmap and OBJ meshes",
+    "ue5_tiles": "Unreal Engine 5 World-Partition landscape: heightmap and weight-map tiles named _x<i>_y<j>",
 }
 
 # texture files looked for in a scene folder, best first (the cleaned image has boats removed)

@@ -224,40 +224,77 @@ def hillshade(z: np.ndarray, gsd_m: float, azimuth_deg: float = 315.0, altitude_
     return np.clip(shade, 0.0, 1.0).astype(np.float32)
 
 
-def colour_relief(z: np.ndarray, max_depth_m: float = 8.0, max_height_m: float | None = None) -> np.ndarray:
-    """Depth (light cyan → navy) and elevation (sand → green → brown → grey) colours, RGB uint8."""
+def colour_relief(z: np.ndarray, max_depth_m: float = 8.0, max_height_m: float | None = None,
+                  lut_size: int = 2048) -> np.ndarray:
+    """Depth (light cyan → navy) and elevation (sand → green → brown → grey) colours, RGB float32.
+
+    Both ramps are piecewise linear and saturate at their ends, so they are tabulated (``lut_size``
+    entries each, i.e. to 1/2048 of the span) and looked up in one gather instead of six full-size
+    interpolations."""
     z = np.asarray(z, np.float32)
-    hi = float(max_height_m) if max_height_m else max(float(np.nanmax(z)), 2.0)
-    out = np.zeros(z.shape + (3,), np.float32)
-    water = z < 0
-    dk = [0.0, 0.5 * max_depth_m, max(max_depth_m, 1e-3)]
+    hi = float(max_height_m) if max_height_m else max(float(np.nanmax(z)) if z.size else 0.0, 2.0)
+    depth = max(max_depth_m, 1e-3)
+    dk = [0.0, 0.5 * max_depth_m, depth]
     wk = np.array([(170, 225, 235), (60, 140, 200), (15, 35, 95)], np.float32)
     lk = [0.0, 0.15 * hi, 0.5 * hi, hi]
     lc = np.array([(225, 212, 160), (120, 170, 85), (145, 115, 75), (235, 235, 235)], np.float32)
+    n = int(lut_size)
+    tw, tl = np.linspace(0.0, depth, n), np.linspace(0.0, hi, n)
+    lut = np.empty((2 * n, 3), np.float32)  # water entries first, then land
     for ch in range(3):
-        out[..., ch] = np.where(water, np.interp(-z, dk, wk[:, ch]), np.interp(z, lk, lc[:, ch]))
-    return out
+        lut[:n, ch] = np.interp(tw, dk, wk[:, ch])
+        lut[n:, ch] = np.interp(tl, lk, lc[:, ch])
+    zz = np.nan_to_num(z, nan=0.0)
+    water = zz < 0
+    iw = np.clip(zz * np.float32(-(n - 1) / depth) + np.float32(0.5), 0, n - 1)
+    il = np.clip(zz * np.float32((n - 1) / hi) + np.float32(n + 0.5), n, 2 * n - 1)
+    idx = np.where(water, iw, il).astype(np.int32)
+    return lut[idx]
 
 
-def hillshade_rgb(z: np.ndarray, gsd_m: float, max_depth_m: float = 8.0) -> np.ndarray:
-    """Colour relief modulated by the hillshade (softer shading under water), RGB uint8."""
+def hillshade_rgb(z: np.ndarray, gsd_m: float, max_depth_m: float = 8.0, shade_levels: int = 256) -> np.ndarray:
+    """Colour relief modulated by the hillshade (softer shading under water), RGB uint8.
+
+    The colour depends on the height bin of ``colour_relief`` and the shade, so both are quantised and the
+    result read from one (height bin x shade level) table: a single uint8 gather per pixel."""
+    z = np.asarray(z, np.float32)
     shade = hillshade(z, gsd_m)
-    col = colour_relief(z, max_depth_m)
-    k = np.where(z < 0, 0.65 + 0.35 * shade, 0.35 + 0.65 * shade)[..., None]
-    return np.clip(col * k, 0, 255).astype(np.uint8)
+    hi = max(float(np.nanmax(z)) if z.size else 0.0, 2.0)
+    n, depth = 2048, max(max_depth_m, 1e-3)
+    # the height bins colour_relief uses: water bins 0..n-1 (depth), land bins n..2n-1 (height)
+    zz = np.nan_to_num(z, nan=0.0)
+    water = zz < 0
+    iw = np.clip(zz * np.float32(-(n - 1) / depth) + np.float32(0.5), 0, n - 1)
+    il = np.clip(zz * np.float32((n - 1) / hi) + np.float32(n + 0.5), n, 2 * n - 1)
+    zbin = np.where(water, iw, il).astype(np.int32)
+    bins = np.concatenate([-np.linspace(0.0, depth, n), np.linspace(0.0, hi, n)]).astype(np.float32)
+    bins[0] = -1e-6  # bin 0 is water (depth 0): keep it on the water side for the shading rule
+    col = colour_relief(bins[None], max_depth_m, max_height_m=hi)[0]  # (2n, 3)
+    s_lv = np.linspace(0.0, 1.0, shade_levels, dtype=np.float32)
+    k = np.where((bins < 0)[:, None], 0.65 + 0.35 * s_lv[None], 0.35 + 0.65 * s_lv[None])  # (2n, levels)
+    table = np.clip(col[:, None, :] * k[..., None], 0, 255).astype(np.uint8).reshape(-1, 3)
+    sbin = (shade * np.float32(shade_levels - 1) + np.float32(0.5)).astype(np.int32)
+    zbin *= shade_levels
+    zbin += sbin
+    return table[zbin]
 
 
 def shore_type_rgb(shore_type: np.ndarray, water: np.ndarray | None = None) -> np.ndarray:
     """The dominant shore type per pixel in colour (water side darker), RGB uint8."""
     from .default import SHORE_TYPES
 
-    lut = np.zeros((len(SHORE_TYPES) + 1, 3), np.uint8)
+    import cv2
+
+    n = len(SHORE_TYPES) + 1
+    lut = np.zeros((1, 256, 3), np.uint8)  # land colours, then the darker water side; an OpenCV table
     for i, name in enumerate(SHORE_TYPES):
-        lut[i] = _TYPE_RGB[name]
-    rgb = lut[np.where(shore_type < 0, len(SHORE_TYPES), shore_type)]
+        lut[0, i] = _TYPE_RGB[name]
+    lut[0, n:2 * n] = (lut[0, :n] * 0.55).astype(np.uint8)
+    st = np.asarray(shore_type)
+    idx = np.where(st < 0, n - 1, st).astype(np.uint8)
     if water is not None:
-        rgb = np.where(water[..., None], (rgb * 0.55).astype(np.uint8), rgb)
-    return rgb
+        idx += np.asarray(water, bool).view(np.uint8) * np.uint8(n)
+    return cv2.LUT(cv2.merge([idx, idx, idx]), lut)
 
 
 # ----------------------------------------------------------------------------- files

@@ -1,0 +1,125 @@
+"""generate end to end on a tiny synthetic level: every output of the scene contract is written (some of
+them by background jobs), failures in background jobs surface, and the fast side-raster maths agrees with
+the exact version."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from coastforge.classes import CLASS_NAMES, GRASS, ROCKS, SAND, TREES, WATER
+from coastforge.config import Config
+from coastforge.errors import OutputExistsError
+from coastforge.fsio import read_png
+
+
+@pytest.fixture(scope="module")
+def level(tmp_path_factory):
+    from coastforge.synth import synth_to_dir
+
+    d = tmp_path_factory.mktemp("level")
+    synth_to_dir("simple_pier_a", 3, d, gsds=(0.25,), size_m=60, overwrite=True)
+    return d / "image_0.25m.png"
+
+
+def _request(image, out, **kw):
+    from coastforge.pipeline import GenerateRequest
+
+    return GenerateRequest(image=str(image), out=str(out), gsd_m=0.25, report=False, **kw)
+
+
+def test_generate_writes_every_output(level, tmp_path):
+    from coastforge.pipeline import run_generate
+    from coastforge.scene import load_scene
+
+    out = tmp_path / "gen"
+    res = run_generate(_request(level, out), Config())
+    scene = load_scene(res.scene_path)
+    h, w = scene.height.shape
+    assert (h, w) == read_png(level).shape[:2] == scene.classes.shape
+    expected = ["scene.json", "terrain/height.tif", "terrain/classes.png", "vegetation.csv", "cleaned.png",
+                "detections.json", "segmentation/classes.png", "segmentation/classes_preview.png",
+                "segmentation/biome.png", "segmentation/biome.json", "segmentation/segmentation.json",
+                "terrain_outputs/hillshade.png", "terrain_outputs/shore_types.png",
+                "terrain_outputs/cross_section.json", "terrain_outputs/cross_section.png"]
+    expected += [f"segmentation/weights/{n}.png" for n in CLASS_NAMES]
+    missing = [p for p in expected if not (out / p).is_file()]
+    assert not missing
+    assert list((out / "pcg").glob("*.png"))
+    assert np.array_equal(read_png(out / "segmentation" / "classes.png"), scene.classes)
+    total = sum(read_png(out / "segmentation" / "weights" / f"{n}.png").astype(int) for n in CLASS_NAMES)
+    assert (total == 255).all()
+    assert read_png(out / "cleaned.png").shape == (h, w, 3)
+    prov = json.loads((out / "scene.json").read_text())["provenance"]
+    stages = ("read", "segment", "detect", "clean", "terrain", "library", "piers", "match", "vegetation", "write")
+    assert all(s in prov["timings_s"] for s in stages) and set(prov["stage_cpu_s"]) == set(stages)
+    assert {"library", "match", "cleaned", "segmentation", "terrain_outputs", "pcg", "scene_rasters"} <= set(
+        prov["background_s"])
+    # objects were matched against the library loaded beside segmentation and detection
+    assert sum(v for k, v in res.n_objects.items() if k != "vegetation") > 0
+    assert all(o.asset_id for o in scene.objects)
+    # a second run refuses the non-empty folder without overwrite
+    with pytest.raises(OutputExistsError):
+        run_generate(_request(level, out), Config())
+
+
+def test_a_failing_background_job_fails_generate(level, tmp_path, monkeypatch):
+    from coastforge.pipeline import run_generate
+    from coastforge.segmentation import outputs
+
+    def broken(*a, **k):
+        raise OSError("disk full (test)")
+
+    monkeypatch.setattr(outputs, "write_segmentation", broken)
+    out = tmp_path / "gen"
+    with pytest.raises(OSError, match="disk full"):
+        run_generate(_request(level, out), Config())
+    assert not (out / "scene.json").exists()  # the JSON is written last, never over incomplete outputs
+
+
+def test_coarse_weight_blur_matches_the_exact_blur():
+    import cv2
+
+    from coastforge.segmentation.outputs import _blur_factor, weight_maps
+
+    rng = np.random.default_rng(0)
+    ids = cv2.resize(rng.integers(0, 8, (12, 12)).astype(np.uint8), (300, 260), interpolation=cv2.INTER_NEAREST)
+    gsd, blur = 0.1, 1.5  # sigma 15 px: computed 5x coarser
+    assert _blur_factor(blur / gsd) == 5
+    wm = weight_maps(ids, gsd, blur)
+    assert wm.shape == (260, 300, 8) and wm.dtype == np.uint8
+    assert (wm.astype(int).sum(-1) == 255).all()
+    exact = np.stack([cv2.GaussianBlur((ids == c).astype(np.float32), (0, 0), blur / gsd,
+                                       borderType=cv2.BORDER_REFLECT) for c in range(8)], -1) * 255
+    assert np.abs(wm - exact).max() <= 8.0 and np.abs(wm - exact).mean() < 1.0  # flooring alone: ~0.5
+    # no blur: exact one-hot maps
+    hard = weight_maps(ids, gsd, 0.0)
+    assert np.array_equal(hard.argmax(-1), ids) and set(np.unique(hard)) == {0, 255}
+
+
+def test_biome_distances_match_scipy():
+    from scipy import ndimage as ndi
+
+    from coastforge.segmentation.outputs import BIOME_IDS, biome_map
+
+    rng = np.random.default_rng(1)
+    ids = np.full((200, 240), GRASS, np.uint8)
+    yy, xx = np.mgrid[0:200, 0:240]
+    ids[(xx - 60) ** 2 + (yy - 100) ** 2 < 50 ** 2] = WATER
+    ids[rng.random(ids.shape) < 0.05] = ROCKS
+    ids[150:, 150:] = TREES
+    ids[:20, 200:] = SAND
+    gsd, shore, shallow = 0.5, 6.0, 8.0
+    b = biome_map(ids, gsd, shore, shallow)
+    water = ids == WATER
+    near_water = ndi.distance_transform_edt(~water) * gsd <= shore
+    near_land = ndi.distance_transform_edt(water) * gsd <= shallow
+    assert np.array_equal(b == BIOME_IDS["shallow_water"], water & near_land)
+    assert np.array_equal(b == BIOME_IDS["deep_water"], water & ~near_land)
+    assert np.array_equal(b == BIOME_IDS["shore_grass"], (ids == GRASS) & near_water)
+    assert np.array_equal(b == BIOME_IDS["rocky_ground"], (ids == ROCKS) & ~near_water)
+    assert (b[ids == TREES] == BIOME_IDS["woodland"]).all() and (b[ids == SAND] == BIOME_IDS["beach"]).all()
+    # no waterline at all: every grass pixel is inland
+    assert (biome_map(np.full((30, 30), GRASS, np.uint8), gsd) == BIOME_IDS["inland_grass"]).all()
