@@ -141,7 +141,8 @@ def place_decisions(decisions, dets: list[Detection], library, grid, config: Con
         objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
                              water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
                              attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4),
-                                    "match": dec.index}))
+                                    "match": dec.index},
+                             shape_scale=dec.fit_scale, shape_offset_m=dec.fit_offset_m if dec.fit_scale else None))
     return objects
 
 

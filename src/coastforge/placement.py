@@ -48,6 +48,13 @@ def fit_scale(length_m: float, width_m: float, dims_m: tuple[float, float, float
     return (s, s, s)
 
 
+def shape_offset_weight(gsd_m: float, config: MatchConfig) -> float:
+    """Weight of the shape fit's centre against the box centre at this GSD (see MatchConfig)."""
+    w1, w2 = config.shape_offset_weight_fine, config.shape_offset_weight_coarse
+    w = w1 + (w2 - w1) * (gsd_m - 0.1) / 0.1
+    return float(min(max(w, 0.0), max(w1, w2)))
+
+
 def ground_height(height: HeightMap | None, grid: Grid, x_m: float, y_m: float, radius_m: float) -> float:
     """Highest terrain under a small disc (so a car never sinks into a slope)."""
     if height is None:
@@ -78,11 +85,27 @@ def centre_height(height: HeightMap | None, grid: Grid, x_m: float, y_m: float, 
 
 def place(det: Detection, asset: AssetLike, grid: Grid, object_id: str, config: MatchConfig,
           height: HeightMap | None = None, water_level_m: float = 0.0, yaw_deg: float | None = None,
-          score: float | None = None, attrs: dict | None = None) -> SceneObject:
+          score: float | None = None, attrs: dict | None = None, shape_scale: float | None = None,
+          shape_offset_m: tuple[float, float] | None = None) -> SceneObject:
     """A scene object for ``det`` rendered with ``asset``. ``yaw_deg`` overrides the detection's heading
-    (e.g. after the matcher resolved bow versus stern)."""
+    (e.g. after the matcher resolved bow versus stern). ``shape_scale`` and ``shape_offset_m`` are the
+    matcher's shape fit of the asset to the image (its scale, and its centre relative to the box centre along
+    the final yaw and to its left): see ``MatchConfig.use_shape_fit``."""
     x, y, length, width = box_in_metres(det, grid)
+    yaw = float(wrap_deg(det.yaw_deg if yaw_deg is None else yaw_deg))
     scale = fit_scale(length, width, asset.dims_m, config)
+    if config.use_shape_fit and shape_scale is not None and config.scale_mode != "per_axis":
+        # the asset's silhouette fitted to the pixels measures size better than the box (whose length is
+        # thrown off by shadows, fenders and a soft bow); the box keeps the per-axis mode
+        s = float(np.clip(shape_scale, config.scale_min, config.scale_max))
+        scale = (s, s, s)
+    w = shape_offset_weight(grid.gsd_m, config)
+    if config.use_shape_fit and shape_offset_m is not None and w > 0 and asset.category != "buoy":
+        # the asset's own outline fitted to the image is a second estimate of the centre (a box's centre lies
+        # toward the stern of a tapered hull); round buoys are centred on their silhouette already
+        ox, oy = w * shape_offset_m[0], w * shape_offset_m[1]
+        c, sn = np.cos(np.radians(yaw)), np.sin(np.radians(yaw))
+        x, y = x + ox * c - oy * sn, y + ox * sn + oy * c
     category = "boat" if asset.category == "boat" else asset.category
     attrs = dict(attrs or {})
     if asset.floating or asset.category in FLOATING_CATEGORIES:
@@ -95,7 +118,6 @@ def place(det: Detection, asset: AssetLike, grid: Grid, object_id: str, config: 
             attrs["ashore"] = True
     else:
         z = ground_height(height, grid, x, y, radius_m=min(length, width) / 2)
-    yaw = float(wrap_deg(det.yaw_deg if yaw_deg is None else yaw_deg))
     return SceneObject(
         id=object_id, category=category, asset_id=asset.id, x_m=x, y_m=y, z_m=float(z), yaw_deg=yaw,
         scale=scale, length_m=float(asset.dims_m[0] * scale[0]), width_m=float(asset.dims_m[1] * scale[1]),
