@@ -251,6 +251,12 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         timings["total"] = round(timings["total"] + timings["export"], 3)
         scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
         scene_path = save_scene(scene, out, rasters=False)
+    return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports)
+
+
+def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: dict, objects, n_vegetation: int,
+                    exports: dict) -> GenerateResult:
+    """The report (when asked for, and when its extra is installed) and the result of a finished scene."""
     report_path = None
     if req.report:
         try:
@@ -261,10 +267,10 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
             t0 = time.perf_counter()
             report_path = build_report(out)
             timings["report"] = round(time.perf_counter() - t0, 3)
-    counts = {}
+    counts: dict[str, int] = {}
     for o in objects:
         counts[o.category] = counts.get(o.category, 0) + 1
-    counts["vegetation"] = len(veg.vegetation)
+    counts["vegetation"] = n_vegetation
     return GenerateResult(scene_path, out, timings, counts, exports, report_path)
 
 

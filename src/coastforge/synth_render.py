@@ -38,23 +38,8 @@ def mesh_source(library: str | Path | None = None) -> Callable[[str], object]:
     return mesh
 
 
-def repaint(mesh, rgb):
-    """A copy of ``mesh`` whose body colour (the colour covering most of its top-visible area) is ``rgb``."""
-    m = mesh.copy()
-    fc = np.asarray(m.visual.face_colors).copy()
-    if not len(fc):
-        return m
-    cols, inv = np.unique(fc[:, :3], axis=0, return_inverse=True)
-    inv = inv.ravel()
-    up = np.asarray(m.face_normals)[:, 2] > 0.3
-    top_area = np.bincount(inv, weights=np.asarray(m.area_faces) * up, minlength=len(cols))
-    body = inv == int(np.argmax(top_area))
-    fc[body, :3] = np.asarray(rgb, np.uint8)
-    m.visual.face_colors = fc
-    return m
-
-
 def _instances(level, meshes) -> list:
+    from .assets.library import repaint  # one repaint for the renders and the library's painted views
     from .render import MeshInstance
 
     scene = level.scene

@@ -22,7 +22,6 @@ tiling.generate_tiled(req, config, progress)``.
 from __future__ import annotations
 
 import math
-import time
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -677,7 +676,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
     from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, _write_vegetation_outputs,
+    from .pipeline import (finish_generate, _Background, _load_library, _pier_assets, _Timer, _write_vegetation_outputs,
                            assets_by_category, fill_under_objects, place_decisions, scene_provenance)
     from .scene import Scene, save_scene, save_scene_rasters
     from .segmentation.clean import clean_image
@@ -769,19 +768,5 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     scene = replace(scene, provenance={**scene.provenance, "timings_s": timings, "stage_cpu_s": dict(timer.cpu),
                                        "background_s": bg.timings()})
     scene_path = save_scene(scene, out, rasters=False)  # the rasters are written: the JSON last
-    report_path = None
-    if req.report:
-        try:
-            from .report import build_report
-        except ImportError:
-            build_report = None
-        if build_report is not None:
-            t0 = time.perf_counter()
-            report_path = build_report(out)
-            timings["report"] = round(time.perf_counter() - t0, 3)
-    counts: dict[str, int] = {}
-    for o in objects:
-        counts[o.category] = counts.get(o.category, 0) + 1
-    counts["vegetation"] = len(veg.vegetation)
-    return GenerateResult(scene_path, out, timings, counts, exports, report_path)
+    return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports)
 
