@@ -88,6 +88,18 @@ def test_pier_gap_to_land_is_bridged():
     assert pier_connectivity(s)["all_connected"] is True
 
 
+@pytest.mark.parametrize("gap_m", [0.8, 1.2])
+def test_pier_end_just_short_of_the_quay_is_extended_to_touch_it(gap_m):
+    # the end is close enough that land fills a good part of a disc around it, but the deck does not reach the
+    # shore: the builder must not call it grounded (the evaluation would find it floating)
+    cm = harbor_classes()  # land ends at x = -30
+    dets = [det("pier_walkway", -30 + gap_m + 10, 0, 20, 2.5, 0)]
+    r = build_piers(dets, cm, WALK, FINGER, PierConfig(max_gap_m=6))
+    assert r.extensions_m[0] >= gap_m - 0.3
+    s = Scene("t", 0, GRID.gsd_m, GRID.extent_m, classes=cm.ids, objects=r.objects)
+    assert pier_connectivity(s, tol_m=0.6)["all_connected"] is True
+
+
 def test_isolated_pier_gets_a_connector():
     cm = harbor_classes()
     dets = [det("pier_walkway", -12, 20, 12, 2.5, 90)]  # 18 m from the quay, parallel to it

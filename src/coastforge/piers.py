@@ -19,6 +19,9 @@ from .frames import wrap_half_deg
 from .scene import SceneObject
 from .types import ClassMap, Detection, Grid
 
+# a pier end this close to solid land touches the shore (the evaluation allows 0.75 m between footprint and land)
+LAND_TOUCH_M = 0.4
+
 
 @dataclass(frozen=True)
 class PierBox:
@@ -112,6 +115,34 @@ class LandProbe:
     def is_land(self, p: np.ndarray, radius_m: float) -> bool:
         return self.land_fraction(p, radius_m) >= 0.3
 
+    def nearest(self):
+        """(distance to the nearest land pixel in px, its indices) per pixel: one exact distance transform of
+        the land mask, opened so single stray pixels do not count; computed on first use."""
+        if self._nearest is None:
+            import cv2
+            from scipy.ndimage import distance_transform_edt
+
+            solid = cv2.morphologyEx(self.land, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+            if not solid.any():
+                self._nearest = (np.full(self.grid.shape, np.inf), None)
+            else:
+                self._nearest = distance_transform_edt(solid == 0, return_indices=True)
+        return self._nearest
+
+    def distance_m(self, p: np.ndarray) -> float:
+        """Distance from a point to the nearest (solid) land, in metres."""
+        g = self.grid
+        col, row = g.to_pixel(p[0], p[1])
+        r = int(np.clip(np.floor(row), 0, g.height_px - 1))
+        c = int(np.clip(np.floor(col), 0, g.width_px - 1))
+        return float(self.nearest()[0][r, c] * g.gsd_m)
+
+    def end_touches(self, box: "PierBox", end: np.ndarray, tol_m: float) -> bool:
+        """Does the end edge of ``box`` at ``end`` come within ``tol_m`` of land (its centre or a corner)? Stricter
+        than a land vote in a disc, so that a structure called grounded really touches the shore."""
+        side = np.array([-box.axis[1], box.axis[0]]) * (box.width_m / 2)
+        return min(self.distance_m(q) for q in (end, end + side, end - side)) <= tol_m
+
 
 def detections_to_boxes(dets: list[Detection], grid: Grid) -> list[PierBox]:
     out = []
@@ -142,9 +173,8 @@ def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float
         new_ends = []
         grown = 0.0
         for end, sign in ((a, -1.0), (e, 1.0)):
-            r = b.width_m / 2 + 0.5
             near = [j for j in tree.query(shapely.Point(end), predicate="dwithin", distance=0.3) if j != i]
-            if probe.is_land(end, r) or near:
+            if probe.end_touches(b, end, LAND_TOUCH_M) or near:
                 new_ends.append(end)
                 continue
             # every step of the ray at once: which steps fall inside another box?
@@ -156,7 +186,7 @@ def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float
             hit_box[pi[bi != i]] = True
             found = None
             for k in range(len(ks)):
-                if hit_box[k] or probe.is_land(qs[k], b.width_m / 2):
+                if hit_box[k] or probe.end_touches(b, qs[k], LAND_TOUCH_M):
                     found = qs[k] + sign * u * min(0.5, step)  # a little overlap so the parts touch
                     break
             if found is None:
@@ -192,17 +222,7 @@ def _nearest_land(probe: LandProbe, start: np.ndarray, max_dist: float, step: fl
     """The nearest land point from ``start`` within ``max_dist``: one exact distance transform of the land
     mask (opened so single stray pixels do not count), with the index of the nearest land pixel."""
     g = probe.grid
-    if probe._nearest is None:
-        import cv2
-        from scipy.ndimage import distance_transform_edt
-
-        solid = cv2.morphologyEx(probe.land, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
-        if not solid.any():
-            probe._nearest = (np.full(g.shape, np.inf), None)
-        else:
-            dist, idx = distance_transform_edt(solid == 0, return_indices=True)
-            probe._nearest = (dist, idx)
-    dist, idx = probe._nearest
+    dist, idx = probe.nearest()
     if idx is None:
         return None
     col, row = g.to_pixel(start[0], start[1])
@@ -231,8 +251,7 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     _connect_floating(boxes, ext, comps, probe, config, step)
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
-    on_land = tuple(any(probe.is_land(end, boxes[i].width_m / 2 + 0.5) for i in comp for end in boxes[i].ends())
-                    for comp in comps)
+    on_land = tuple(_reaches_land(boxes, comp, probe) for comp in comps)
     objects: list[SceneObject] = []
     for s, comp in enumerate(comps):
         for i in comp:
@@ -248,7 +267,7 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
 
 
 def _reaches_land(boxes: list[PierBox], comp: list[int], probe: LandProbe) -> bool:
-    return any(probe.is_land(end, boxes[i].width_m / 2 + 0.5) for i in comp for end in boxes[i].ends())
+    return any(probe.end_touches(boxes[i], end, LAND_TOUCH_M) for i in comp for end in boxes[i].ends())
 
 
 def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[int]], probe: LandProbe,
