@@ -368,3 +368,122 @@ def test_marina_water_iou(shared_data):
     cm = segment(image, SegmentConfig())
     res = class_ious(cm.ids, rasterize_polygons(spec, cm.ids.shape))
     assert res["iou"]["water"] >= 0.95
+
+
+# ----------------------------------------------------------------------- classical: cars, canopies, edges
+
+def parking_image(seed: int = 0, gsd: float = 0.4):
+    """Grey pavement (80 x 80 m at 0.4 m/px) with a row of parked cars (dark blue-grey and white
+    rectangles with shadows) on the left and a textured green canopy on the right, under a yellow
+    cast like the DOTA marina's. Returns the image, the car-row mask and the canopy mask."""
+    rng = np.random.default_rng(seed)
+    n = int(round(80 / gsd))
+    yy, xx = np.mgrid[0:n, 0:n]
+    rgb = np.empty((n, n, 3), np.float32)
+    rgb[:] = (112, 112, 96)  # pavement, yellowish cast
+    rgb += rng.normal(0, 1.5, (n, n, 1))
+    cars = np.zeros((n, n), bool)
+    cl, cw = int(4.5 / gsd), int(1.9 / gsd)  # a car: 4.5 x 1.9 m, one every 2.6 m
+    for i, y0 in enumerate(range(int(10 / gsd), int(70 / gsd), int(2.6 / gsd))):
+        x0 = int(12 / gsd)
+        colour = (235, 235, 238) if i % 3 == 0 else (40, 44, 58)
+        rgb[y0:y0 + cw, x0:x0 + cl] = colour
+        rgb[y0 + cw:y0 + cw + 1, x0:x0 + cl] = (50, 52, 60)  # shadow on the pavement
+        cars[y0:y0 + cw + 1, x0:x0 + cl] = True
+    canopy = ((xx - int(55 / gsd)) ** 2 + (yy - int(40 / gsd)) ** 2) < int(8 / gsd) ** 2
+    leaves = rng.normal(0, 1, canopy.sum())
+    rgb[canopy] = np.stack([45 + 22 * leaves, 75 + 30 * leaves, 35 + 14 * leaves], 1)
+    return GeoImage(rgb=np.clip(rgb, 0, 255).astype(np.uint8), grid=Grid(n, n, gsd)), cars, canopy
+
+
+def test_greenness_tells_a_canopy_from_a_row_of_dark_cars():
+    from coastforge.segmentation.classical import TREE_MIN_GREEN, compute_features, greenness, pavement_exg
+
+    image, cars, canopy = parking_image()
+    F = compute_features(image.rgb, image.grid.gsd_m)
+    water = np.zeros(cars.shape, bool)
+    # the pavement's own excess green (the cast) is the reference, not zero
+    assert pavement_exg(F, water) > 0.02
+    g = greenness(F, water)
+    assert np.median(g[canopy]) > 2 * TREE_MIN_GREEN
+    assert np.median(g[cars]) < 0.0
+
+
+def test_classical_car_row_is_pavement_and_canopy_stays_trees():
+    from coastforge.segmentation import segment
+
+    image, cars, canopy = parking_image(seed=1)
+    ids = segment(image, SegmentConfig()).ids
+    assert (ids[cars] == TREES).mean() < 0.1  # dark cars are not crowns
+    assert (ids[cars] == ASPHALT).mean() > 0.7  # the terrain under parked cars is pavement
+    assert (ids[canopy] == TREES).mean() > 0.7
+
+
+def test_parked_cars_mask_needs_pavement_texture_and_no_green():
+    from coastforge.classes import ASPHALT as A
+    from coastforge.segmentation.classical import compute_features, greenness, land_seeds, parked_cars
+
+    image, cars, canopy = parking_image(seed=2)
+    F = compute_features(image.rgb, image.grid.gsd_m)
+    water = np.zeros(cars.shape, bool)
+    g = greenness(F, water)
+    seeds = land_seeds(F, water, 0.0, g)
+    m = parked_cars(F, g, seeds)
+    assert m[cars].mean() > 0.5
+    assert m[canopy].mean() < 0.05
+    # without pavement the rules are sure of, nothing is a car row
+    assert not parked_cars(F, g, np.where(seeds == A, -1, seeds).astype(np.int8)).any()
+
+
+def test_refine_land_edges_moves_a_shifted_border_back():
+    from coastforge.classes import GRASS as G
+    from coastforge.segmentation.classical import compute_features, refine_land_edges
+
+    n, gsd = 120, 0.4
+    rng = np.random.default_rng(0)
+    rgb = np.empty((n, n, 3), np.float32)
+    rgb[:, :60] = (95, 150, 60)  # grass left of column 60
+    rgb[:, 60:] = (85, 85, 88)  # asphalt right of it
+    rgb += rng.normal(0, 2.0, (n, n, 1))
+    F = compute_features(np.clip(rgb, 0, 255).astype(np.uint8), gsd)
+    ids = np.full((n, n), ASPHALT, np.uint8)
+    ids[:, :63] = G  # the classifier's grass spilled 3 px (1.2 m) over the border
+    land = np.ones((n, n), bool)
+    out = refine_land_edges(ids, F, land, band_m=2.0)
+    assert (out[:, 60:63] == ASPHALT).mean() > 0.9
+    assert (out[:, :58] == G).all() and (out[:, 65:] == ASPHALT).all()
+    # trees neither give nor take pixels (a crown's single pixels look like anything)
+    ids_t = ids.copy()
+    ids_t[:, :63] = TREES
+    assert np.array_equal(refine_land_edges(ids_t, F, land, band_m=2.0), ids_t)
+
+
+def test_land_seeds_pale_grass_is_not_asphalt_and_rough_bank_is_rocks():
+    """Pale, dry grass (grey enough for the asphalt colour rule) is greener than the image's pavement,
+    so it seeds no asphalt; rough grey ground on the bank seeds rocks, the same ground inland does not."""
+    from coastforge.classes import ROCKS
+    from coastforge.segmentation.classical import compute_features, greenness, land_seeds
+
+    n, gsd = 150, 0.4
+    rng = np.random.default_rng(3)
+    rgb = np.empty((n, n, 3), np.float32)
+    rgb[:] = (100, 100, 98)  # pavement
+    rgb[:, 40:70] = (102, 107, 96)  # pale dry grass: grey enough for the asphalt colour rule
+    water = np.zeros((n, n), bool)
+    water[:, 130:] = True
+    rgb[water] = (40, 80, 110)
+    rgb += rng.normal(0, 1.0, (n, n, 1))
+    stones = np.zeros((n, n), bool)
+    stones[:, 118:130] = True  # a 4.8 m revetment strip at the waterline
+    stones[10:40, 80:92] = True  # the same rough grey ground 15 m inland
+    rgb[stones] = (70, 69, 67) + rng.normal(0, 12.0, (stones.sum(), 1))  # dark, wet stones
+    F = compute_features(np.clip(rgb, 0, 255).astype(np.uint8), gsd)
+    g = greenness(F, water)
+    seeds = land_seeds(F, water, 15.0, g)
+    assert (seeds[5:-5, 45:65] == ASPHALT).mean() < 0.05
+    assert (seeds[5:-5, 5:30] == ASPHALT).mean() > 0.9  # the pavement itself still seeds asphalt
+    bank = seeds[5:-5, 120:128]
+    assert (bank == ROCKS).mean() > 0.5
+    inland = seeds[14:36, 82:90]
+    assert (inland == ROCKS).mean() < (bank == ROCKS).mean() / 2
+

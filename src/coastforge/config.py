@@ -32,7 +32,7 @@ class IOConfig:
 class SegmentConfig:
     backend: str = "classical"
     smooth_px: int = 3  # majority filter radius in pixels
-    min_region_m2: float = 4.0  # smaller islands are merged into their surroundings
+    min_region_m2: float = 20.0  # smaller land patches merge into their surroundings (a small tree crown is ~20 m2)
     weight_blur_m: float = 1.0  # softened borders of the paint-layer weight maps
     superpixel_m: float = 2.0  # SLIC superpixel size
     self_training: bool = True
@@ -44,6 +44,7 @@ class SegmentConfig:
     pier_open_m: float = 5.0  # structures narrower than ~2x this, tied to the shore and fragmented (piers with boats), are water
     rocks_shore_m: float = 15.0  # rocks farther than this from water are unlikely (0 = no prior)
     vehicle_area_max_m2: float = 400.0  # blobs up to this size enclosed by asphalt become asphalt (parked cars)
+    edge_refine_m: float = 1.0  # classical: land pixels this close to a class border are re-decided by their fine features (0 = off)
     biome_shore_m: float = 15.0  # biome map: land this close to the waterline is "shore"
     biome_shallow_m: float = 20.0  # biome map: water this close to land is "shallow" (seaweed)
     learned_water: str = "classical"  # learned backend: water from the "classical" water model or the "net"

@@ -15,10 +15,17 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
    by comparing its colour with the local water and local land-class colours.
 3. Land: colour/texture rules (after removing the image's colour cast) label the pixels they are sure
    of; a per-image Gaussian classifier (QDA) trained on those pixels (self-training) labels the rest,
-   so thresholds only need to be right for the clear cases of each image.
+   so thresholds only need to be right for the clear cases of each image. Vegetation is measured
+   against the image's own pavement (``greenness``: excess green of the mean colour over ~3 m minus
+   the pavement's): canopies are greener, rows of dark parked cars and shadows on pavement are not;
+   asphalt is not greener; unsure rough grey ground on the bank is a revetment.
 4. Probabilities are box-smoothed (majority filter); priors: rocks are revetments near water, trees
-   are textured and not a straight edge; car-sized blobs on pavement become asphalt (parked cars are
-   transient); regions smaller than ``min_region_m2`` merge into their surroundings.
+   are textured and not a straight edge; rows of parked cars (textured, not green, beside pavement)
+   are neither trees, dirt, sand, sidewalk nor (off the bank) rocks; car-sized blobs on pavement become
+   asphalt (parked cars are transient); pixels within ``edge_refine_m`` of a class border are
+   re-decided by their own colour against the local class colours (the classifier's 4-8 m windows
+   spread classes past their borders); regions smaller than ``min_region_m2`` merge into their
+   surroundings.
 """
 
 from __future__ import annotations
@@ -37,6 +44,20 @@ from ..rng import stage_seed
 from ..types import ClassMap, GeoImage
 
 LAND = (ASPHALT, SIDEWALK, GRASS, TREES, DIRT, ROCKS, SAND)
+# a canopy's excess green over the pavement's (``greenness``, mean colour over ~3 m) is above this;
+# dark car rows and shadows on pavement sit at or below 0
+TREE_MIN_GREEN = 0.015
+# ... and asphalt's is below this (the pavement reference is 0 by definition)
+PAVED_MAX_GREEN = 0.03
+# unsure grey ground this close to the water (m) and rougher than pavement (std of L* over ~1.2 m)
+# seeds as rocks: a revetment's slope
+BANK_ROCKS_M = 6.0
+BANK_T1 = 4.0
+# parked cars: std of L* over ~1.2 m above this (car bodies, glass and shadows against pavement) and
+# greenness below this; they are not rocks unless this close to the water (a revetment beside a quay)
+CAR_MIN_TEX = 6.0
+CAR_MAX_GREEN = 0.01
+CAR_BANK_M = 6.0
 
 
 def _odd(n: float) -> int:
@@ -66,6 +87,7 @@ class Features:
     bright: np.ndarray  # share of bright pixels (L > 62) within ~3 m: car roofs, decks, not canopies
     coh: np.ndarray  # gradient coherence over ~2 m: 1 at straight edges, low in isotropic texture (canopies)
     ctx: np.ndarray  # (H, W, 4) L, a, b, tex1 averaged over ~8 m
+    exg_m: np.ndarray  # excess green of the mean RGB over ~3 m (bright pixels weigh more than dark ones)
     gsd_m: float
 
     def stack(self) -> np.ndarray:
@@ -98,7 +120,10 @@ def compute_features(rgb: np.ndarray, gsd_m: float) -> Features:
     kh = _odd(2.0 / gsd_m)
     jxx, jyy, jxy = (cv2.blur(v, (kh, kh)) for v in (gx * gx, gy * gy, gx * gy))
     coh = np.sqrt((jxx - jyy) ** 2 + 4.0 * jxy * jxy) / (jxx + jyy + 1e-3)
-    return Features(L, a, b, sat, exg, bdom, tex1, tex2, grad, bright, coh, ctx, gsd_m)
+    k3 = _odd(3.0 / gsd_m)
+    fm = cv2.blur(f, (k3, k3))
+    exg_m = (2.0 * fm[..., 1] - fm[..., 0] - fm[..., 2]) / (fm.sum(axis=2) + 1e-3)
+    return Features(L, a, b, sat, exg, bdom, tex1, tex2, grad, bright, coh, ctx, exg_m, gsd_m)
 
 
 # ---------------------------------------------------------------------------------------------- water
@@ -211,8 +236,9 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     # nearly the same colour (the ΔE test below), which keeps lawns (more chroma) and sand (warmer) out
     murky = (np.hypot(F.a, F.b) < 14.0) & (F.a < -2.0) & (F.L < 75.0) & (F.tex1 < 4.0)
     # each pass reaches ~5 m further (the reference is only defined near water): gradual shallows
-    # need several passes; the water-colour gate keeps the growth off beaches and lawns
-    for _ in range(6):
+    # (pale water over sand, up to ~45 m wide) need several passes; the water-colour gate keeps the
+    # growth off beaches and lawns. Growth stops once a pass adds under 0.05 % of the image.
+    for _ in range(9):
         before = int(water.sum())
         norm = cv2.blur(wf, (k, k))
         ok = norm > 1e-3
@@ -228,7 +254,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         ids2 = np.unique(lab2[water])
         water = np.isin(lab2, ids2[ids2 > 0])
         wf = water.astype(np.float32)
-        if int(water.sum()) - before < 0.002 * water.size:
+        if int(water.sum()) - before < 0.0005 * water.size:
             break
     # vegetation (yellow-green, textured, far from the water colour) keeps an enclosed blob land;
     # teal/cyan shadows between boats are not vegetation
@@ -331,18 +357,47 @@ def colour_cast(F: Features, water: np.ndarray) -> tuple[float, float]:
     return float(np.clip(a0, -5.0, 5.0)), float(np.clip(b0, -8.0, 8.0))
 
 
-def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0) -> np.ndarray:
-    """Rule labels (int8, -1 = unsure) for pixels whose class is clear from colour and texture alone."""
+def pavement_exg(F: Features, water: np.ndarray) -> float:
+    """Excess green of the image's smooth near-neutral land (pavement, roofs): the reference a canopy
+    must be greener than. Haze and white balance shift excess green as they shift a*/b*; measuring
+    vegetation against the pavement of the same image removes that shift."""
+    near = ~water & (np.hypot(F.a, F.b) < 14.0) & (F.L > 15) & (F.L < 70) & (F.tex1 < 2.5) & (F.exg < 0.15)
+    if near.sum() < 200:
+        return 0.0
+    return float(np.median(F.exg[near]))
+
+
+def greenness(F: Features, water: np.ndarray) -> np.ndarray:
+    """Excess green of the mean colour over ~3 m, relative to the pavement's (``pavement_exg``).
+
+    The mean colour weighs pixels by their brightness, so a crown's dark shaded side takes the hue of
+    its lit leaves (the chromaticity of a nearly black pixel is noise). A canopy is greener than the
+    pavement; rows of dark parked cars and shadows on pavement (lit by the blue sky) are as green as
+    the pavement or less: the cheapest feature that tells a car row from a row of trees."""
+    return F.exg_m - pavement_exg(F, water)
+
+
+def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
+               green: np.ndarray | None = None) -> np.ndarray:
+    """Rule labels (int8, -1 = unsure) for pixels whose class is clear from colour and texture alone.
+
+    ``green``: ``greenness(F, water)``, computed here when not given."""
     a0, b0 = colour_cast(F, water)
+    if green is None:
+        green = greenness(F, water)
     L, t1, t2 = F.L, F.tex1, F.tex2
     a, b = F.a - a0, F.b - b0
     chroma = np.hypot(a, b)
-    green = ((a < -5.0) & (b > -2.0)) | (F.exg > 0.08)
+    hue_green = ((a < -5.0) & (b > -2.0)) | (F.exg > 0.08)
     rules = {
         # canopies are textured at the 4 m scale; in shade they are dark whatever their hue
-        TREES: ((green & (L < 48)) | (L < 30)) & (t2 > 6.0) & (t1 > 3.5) & (a < 8.0) & (F.bright < 0.03),
-        GRASS: green & (L > 20) & (t1 < 3.5) & (t2 < 7.0),
-        ASPHALT: (chroma < 8.0) & (L > 12) & (L < 55) & (t1 < 4.0) & (a > -5.0),
+        # ... and, lit or shaded, greener than the pavement (dark car rows and shadows are not)
+        TREES: (((hue_green & (L < 48)) | (L < 30)) & (t2 > 6.0) & (t1 > 3.5) & (a < 8.0) & (F.bright < 0.03)
+                & (green > TREE_MIN_GREEN)),
+        GRASS: hue_green & (L > 20) & (t1 < 3.5) & (t2 < 7.0),
+        # asphalt is no greener than the image's pavement (dry, pale grass can be as grey); light
+        # concrete often has a tint of its own, so sidewalks are not held to this
+        ASPHALT: (chroma < 8.0) & (L > 12) & (L < 55) & (t1 < 4.0) & (a > -5.0) & (green < PAVED_MAX_GREEN),
         SIDEWALK: (chroma < 10.0) & (L >= 60) & (t1 < 6.0) & (a > -5.0),
         # bare earth: warm (orange-yellow hue), some chroma, mid lightness; sand is the light version
         DIRT: (a > 1.0) & (b > 6.0) & (chroma > 7.0) & (L > 25) & (L < 60) & (t1 < 6.0),
@@ -357,10 +412,27 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0) -> np
     for cid, m in rules.items():
         seeds[m & (count == 1)] = cid
     if rocks_shore_m > 0 and water.any():
-        far = ndi.distance_transform_edt(~water) * F.gsd_m > rocks_shore_m
-        seeds[(seeds == ROCKS) & far] = -1
+        dist = ndi.distance_transform_edt(~water) * F.gsd_m
+        seeds[(seeds == ROCKS) & (dist > rocks_shore_m)] = -1
+        # on the bank itself, grey ground rougher than pavement and not vegetated is a revetment even
+        # when darker or finer-grained than the riprap rule asks (wet or shaded stones)
+        bank = ((dist <= BANK_ROCKS_M) & (chroma < 12.0) & (L > 20) & (L < 72) & (t1 > BANK_T1)
+                & (green < TREE_MIN_GREEN) & (F.bright < 0.05))
+        seeds[bank & (seeds < 0)] = ROCKS
     seeds[water] = -1
     return seeds
+
+
+def parked_cars(F: Features, green: np.ndarray, seeds: np.ndarray, reach_m: float = 5.0) -> np.ndarray:
+    """Where rows of parked cars likely are: strongly textured (painted metal, glass and their shadows
+    against the pavement), no greener than the pavement, and beside pavement the rules are sure of
+    (a car is ~4.5 m long, a double row of them ~10 m deep, so a car row's pixels are within
+    ``reach_m`` of an aisle). The terrain under parked cars is pavement."""
+    paved = ((seeds == ASPHALT) | (seeds == SIDEWALK)).astype(np.uint8)
+    if not paved.any():
+        return np.zeros(F.L.shape, bool)
+    near = cv2.dilate(paved, _disk(reach_m / F.gsd_m)).astype(bool)
+    return near & (F.tex1 > CAR_MIN_TEX) & (green < CAR_MAX_GREEN)
 
 
 def _train_predict(X: np.ndarray, y: np.ndarray, Xall: np.ndarray, seed: int, per_class: int = 4000,
@@ -395,6 +467,47 @@ def _train_predict(X: np.ndarray, y: np.ndarray, Xall: np.ndarray, seed: int, pe
     p = np.exp(ll)
     p /= p.sum(axis=1, keepdims=True)
     return np.array(classes), p.astype(np.float32)
+
+
+def refine_land_edges(ids: np.ndarray, F: Features, land: np.ndarray, band_m: float) -> np.ndarray:
+    """Re-decide land pixels near a class border by their own fine features.
+
+    The classifier sees texture and context averaged over 4-8 m, so a class spreads up to half that
+    window past its true border (a crown's texture makes the lawn around it "trees"). Within
+    ``band_m`` of a border, each pixel takes the class, among those present nearby, whose local mean
+    colour (L*, a*, b* over ~4 x ``band_m``) it is nearest to, in units of that class's own colour
+    spread in the image. Colour only: texture is itself a window statistic, high on both sides of
+    every border."""
+    gsd = F.gsd_m
+    r = max(1, int(round(band_m / gsd)))
+    # crowns and riprap are textured at every scale: a single pixel of either looks like any class,
+    # so trees and rocks neither give nor take pixels here
+    present = [c for c in LAND if c not in (TREES, ROCKS) and (ids[land] == c).any()]
+    if len(present) < 2:
+        return ids
+    kb = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+    mx = cv2.dilate(ids, kb)
+    mn = cv2.erode(ids, kb)
+    band = land & (mx != mn) & (ids != TREES) & (ids != ROCKS)
+    if not band.any():
+        return ids
+    feats = np.dstack([F.L, F.a, F.b]).astype(np.float32)
+    k = _odd(4.0 * band_m / gsd)
+    ys, xs = np.nonzero(band)
+    px = feats[ys, xs]
+    best = np.full(ys.size, np.inf, np.float32)
+    out = ids.copy()
+    for c in present:
+        m = (ids == c) & land
+        sd = feats[m].std(axis=0) + 1.0
+        n = cv2.blur(m.astype(np.float32), (k, k))
+        mean = cv2.blur(feats * m[..., None], (k, k)) / np.maximum(n, 1e-3)[..., None]
+        d = (((px - mean[ys, xs]) / sd) ** 2).sum(axis=1)
+        d[n[ys, xs] < 0.05] = np.inf  # only classes present nearby compete
+        better = d < best
+        best[better] = d[better]
+        out[ys[better], xs[better]] = c
+    return out
 
 
 def _absorb_into_asphalt(ids: np.ndarray, gsd_m: float, max_m2: float) -> np.ndarray:
@@ -541,7 +654,8 @@ class ClassicalSegmenter:
         else:
             F = compute_features(rgb, gsd_m)
             water, open_water = detect_water(F, cfg, return_open=True)
-        seeds = land_seeds(F, water, cfg.rocks_shore_m)
+        green = greenness(F, water)
+        seeds = land_seeds(F, water, cfg.rocks_shore_m, green)
         h, w = water.shape
         land = ~water
         ids = np.full((h, w), WATER, np.uint8)
@@ -553,7 +667,7 @@ class ClassicalSegmenter:
             elif len(present) == 1 or not cfg.self_training:
                 ids[land] = self._rule_fill(seeds, land, present)
             else:
-                X = F.stack()
+                X = np.concatenate([F.stack(), green.reshape(-1, 1)], axis=1)
                 m = seeds.ravel() >= 0
                 classes, proba = _train_predict(X[m], seeds.ravel()[m], X[land.ravel()],
                                                 stage_seed(seed, "segment", "classical"))
@@ -563,16 +677,26 @@ class ClassicalSegmenter:
                 k = 2 * max(0, int(cfg.smooth_px)) + 1
                 if k > 1:
                     full = cv2.blur(full, (k, k))  # majority filter on probabilities
-                if water.any() and cfg.rocks_shore_m > 0:
+                d = ndi.distance_transform_edt(~water) * gsd_m if water.any() else None
+                if d is not None and cfg.rocks_shore_m > 0:
                     # Rocks in a coastal scene are revetments and breakwaters along the water; inland,
                     # the same texture is usually rows of parked cars or gravel roofs.
-                    d = ndi.distance_transform_edt(~water) * gsd_m
                     full[..., ROCKS] *= np.where(d <= cfg.rocks_shore_m, 1.0, 0.05).astype(np.float32)
                 # canopies are textured: a smooth dark lawn (shade, wet or lush grass) is not a tree
                 # ... nor is the edge between a light and a dark patch of lawn (coherent gradients)
                 notree = (F.tex2 < 7.5) | (F.tex1 < 3.0) | (F.coh > 0.6)
                 full[..., TREES] *= np.where(notree, 0.05, 1.0).astype(np.float32)
+                # parked cars stand on pavement: not trees, dirt, sand, sidewalk, nor rocks, except on
+                # the bank itself (a revetment's stones beside a quay's pavement look like a car row)
+                cars = parked_cars(F, green, seeds)
+                for c in (TREES, DIRT, SAND, SIDEWALK):
+                    full[..., c] *= np.where(cars, 0.05, 1.0).astype(np.float32)
+                if d is not None:
+                    cars &= d > CAR_BANK_M
+                full[..., ROCKS] *= np.where(cars, 0.05, 1.0).astype(np.float32)
                 ids[land] = full.argmax(axis=2).astype(np.uint8)[land]
+                if cfg.edge_refine_m > 0:
+                    ids = refine_land_edges(ids, F, land, cfg.edge_refine_m)
                 ids = _absorb_into_asphalt(ids, gsd_m, cfg.vehicle_area_max_m2)
         min_px = int(round(cfg.min_region_m2 / (gsd_m * gsd_m)))
         ids = _merge_small(ids, min_px, fixed=water)

@@ -186,7 +186,7 @@ class LearnedSegmenter:
         Returns the classical (features, water, open water) instead when the network's land classes
         agree with the classical colour rules' confident pixels (``land_seeds``) on less than
         ``segment.learned_min_agreement`` of them: on our renders the agreement is 0.8-0.95, on real
-        photos unlike them it drops (0.54 on the DOTA marina), and then the classical segmenter is the
+        photos unlike them it drops (0.57 on the DOTA marina), and then the classical segmenter is the
         better guess (it reuses the features and water computed here)."""
         from .classical import ClassicalSegmenter, compute_features, detect_water, land_seeds, refine_water_edge
 

@@ -10,21 +10,15 @@ benchmark's own seed (0) is refused so that validation never leaks into training
 
 from __future__ import annotations
 
-import argparse
-import json
-import math
-import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from ..rng import stage_rng
+from .common import RESERVED_SEEDS, data_main, parse_seeds, render_levels  # noqa: F401 (re-exported)
 
 WORK_GSD_M = 0.2  # the detector's working resolution (metres per pixel)
 CLASSES: tuple[str, ...] = ("boat", "vehicle", "buoy")
-RESERVED_SEEDS = range(0, 100)  # validation levels (the synthetic benchmark uses seed 0)
 
 
 def resample_to_gsd(rgb: np.ndarray, gsd_m: float, work_gsd_m: float = WORK_GSD_M) -> tuple[np.ndarray, float]:
@@ -65,69 +59,28 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
     return work, boxes
 
 
-def parse_seeds(text: str) -> list[int]:
-    """``"100:400"`` (half-open) or ``"100,101"`` → seeds; validation seeds (< 100) are refused."""
-    try:
-        if ":" in text:
-            a, b = text.split(":")
-            seeds = list(range(int(a), int(b)))
-        else:
-            seeds = [int(s) for s in text.split(",") if s.strip()]
-    except ValueError:
-        raise InputError(f"--seeds {text!r} must be 'A:B' or a comma list of integers") from None
-    bad = [s for s in seeds if s in RESERVED_SEEDS]
-    if bad or not seeds:
-        raise InputError(f"--seeds {text!r}: seeds below 100 are reserved for validation (got {bad[:5]}); "
-                         "use e.g. 100:400")
-    return seeds
-
-
 def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
              gsd_range: tuple[float, float] = (0.08, 0.3), minutes: float | None = None) -> Path:
     """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written images).
 
     The index is rewritten after every level so that a run cut short still leaves usable data."""
-    from ..fsio import atomic_write_text, write_png
-    from ..synth import PRESETS
+    from ..fsio import write_png
 
-    presets = list(presets or PRESETS)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    idx_path = out / "index.json"
-    index = json.loads(idx_path.read_text()) if idx_path.is_file() else {"work_gsd_m": WORK_GSD_M, "items": []}
-    done = {it["image"] for it in index["items"]}
-    t0 = time.time()
-    for i, seed in enumerate(seeds):
-        if minutes is not None and time.time() - t0 > minutes * 60:
-            break
-        preset = presets[i % len(presets)]
+    def make_item(preset: str, seed: int, gsd: float, size: float, out: Path) -> tuple[dict, str]:
+        rgb, boxes = level_sample(preset, seed, gsd, size)
         name = f"{preset}_{seed}.png"
-        if name in done:
-            continue
-        rng = stage_rng(seed, "train", "detector_data", preset)
-        # log-uniform GSD: as many fine as coarse renders; level sizes kept small (fast, many layouts)
-        gsd = float(math.exp(rng.uniform(math.log(gsd_range[0]), math.log(gsd_range[1]))))
-        size = float(2 * round(rng.uniform(70, 150) / 2))
-        try:
-            rgb, boxes = level_sample(preset, seed, gsd, size)
-        except ValueError as exc:  # some presets cannot lay out every small size: skip that level
-            print(f"{name}: skipped ({exc})", flush=True)
-            continue
         write_png(out / name, rgb)
-        index["items"].append({"image": name, "preset": preset, "seed": seed, "render_gsd_m": round(gsd, 4),
-                               "boxes": [[round(v, 3) for v in b] for b in boxes]})
-        atomic_write_text(idx_path, json.dumps(index) + "\n")
-        print(f"{name} gsd={gsd:.3f} boxes={len(boxes)} t={time.time() - t0:.0f}s", flush=True)
-    return idx_path
+        return ({"image": name, "preset": preset, "seed": seed, "render_gsd_m": round(gsd, 4),
+                 "boxes": [[round(v, 3) for v in b] for b in boxes]}, f"boxes={len(boxes)}")
+
+    # level sizes kept small (fast, many layouts)
+    head = {"work_gsd_m": WORK_GSD_M}
+    return render_levels(out_dir, seeds, make_item, stage="detector_data", index_head=head, presets=presets,
+                         gsd_range=gsd_range, size_range_m=(70.0, 150.0), minutes=minutes)
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--seeds", default="100:400")
-    ap.add_argument("--minutes", type=float, default=None)
-    a = ap.parse_args(argv)
-    generate(a.out, parse_seeds(a.seeds), minutes=a.minutes)
+    data_main(argv, __doc__.splitlines()[0], "100:400", generate)
 
 
 if __name__ == "__main__":

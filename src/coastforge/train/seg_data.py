@@ -10,17 +10,12 @@ levels never leak into training.
 
 from __future__ import annotations
 
-import argparse
-import json
-import math
-import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..rng import stage_rng
-from .detector_data import parse_seeds
+from .common import data_main, render_levels
 
 DATA_GSD_M = 0.2  # samples are stored at this resolution (the truth rasters' own)
 
@@ -43,48 +38,22 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> 
 def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
              gsd_range: tuple[float, float] = (0.08, 0.35), minutes: float | None = None) -> Path:
     """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written levels)."""
-    from ..fsio import atomic_write_text, write_png
-    from ..synth import PRESETS
+    from ..fsio import write_png
 
-    presets = list(presets or PRESETS)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    idx_path = out / "index.json"
-    index = json.loads(idx_path.read_text()) if idx_path.is_file() else {"gsd_m": DATA_GSD_M, "items": []}
-    done = {it["image"] for it in index["items"]}
-    t0 = time.time()
-    for i, seed in enumerate(seeds):
-        if minutes is not None and time.time() - t0 > minutes * 60:
-            break
-        preset = presets[i % len(presets)]
+    def make_item(preset: str, seed: int, gsd: float, size: float, out: Path) -> tuple[dict, str]:
+        rgb, ids = level_sample(preset, seed, gsd, size)
         name = f"{preset}_{seed}"
-        if f"{name}.png" in done:
-            continue
-        rng = stage_rng(seed, "train", "seg_data", preset)
-        # log-uniform render GSD: fine and coarse renders equally often (blur/aliasing of both kinds)
-        gsd = float(math.exp(rng.uniform(math.log(gsd_range[0]), math.log(gsd_range[1]))))
-        size = float(2 * round(rng.uniform(80, 180) / 2))
-        try:
-            rgb, ids = level_sample(preset, seed, gsd, size)
-        except ValueError as exc:  # some presets cannot lay out every small size: skip that level
-            print(f"{name}: skipped ({exc})", flush=True)
-            continue
         write_png(out / f"{name}.png", rgb)
         write_png(out / f"{name}_classes.png", ids)
-        index["items"].append({"image": f"{name}.png", "classes": f"{name}_classes.png", "preset": preset,
-                               "seed": seed, "render_gsd_m": round(gsd, 4)})
-        atomic_write_text(idx_path, json.dumps(index) + "\n")
-        print(f"{name} gsd={gsd:.3f} size={size:.0f} t={time.time() - t0:.0f}s", flush=True)
-    return idx_path
+        return ({"image": f"{name}.png", "classes": f"{name}_classes.png", "preset": preset, "seed": seed,
+                 "render_gsd_m": round(gsd, 4)}, f"size={size:.0f}")
+
+    return render_levels(out_dir, seeds, make_item, stage="seg_data", index_head={"gsd_m": DATA_GSD_M},
+                         presets=presets, gsd_range=gsd_range, size_range_m=(80.0, 180.0), minutes=minutes)
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--seeds", default="2000:2240")
-    ap.add_argument("--minutes", type=float, default=None)
-    a = ap.parse_args(argv)
-    generate(a.out, parse_seeds(a.seeds), minutes=a.minutes)
+    data_main(argv, __doc__.splitlines()[0], "2000:2240", generate)
 
 
 if __name__ == "__main__":

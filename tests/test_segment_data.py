@@ -1,0 +1,68 @@
+"""Training-data commands of the learned segmenter and detector: the shared part (train/common.py)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from coastforge.errors import InputError
+from coastforge.train import common
+
+
+def test_parse_seeds_ranges_lists_and_reserved():
+    assert common.parse_seeds("100:103") == [100, 101, 102]
+    assert common.parse_seeds("150, 120") == [150, 120]
+    with pytest.raises(InputError, match="reserved for validation"):
+        common.parse_seeds("0:200")
+    with pytest.raises(InputError, match="must be 'A:B'"):
+        common.parse_seeds("1-2")
+    with pytest.raises(InputError, match="reserved"):
+        common.parse_seeds("")
+    # both commands use the one implementation
+    from coastforge.train import detector_data, seg_data
+
+    assert detector_data.parse_seeds is common.parse_seeds
+    assert seg_data.data_main is common.data_main and detector_data.data_main is common.data_main
+
+
+def test_render_levels_resumes_skips_and_draws_the_same_levels(tmp_path):
+    calls = []
+
+    def make_item(preset, seed, gsd, size, out):
+        if seed == 102:
+            raise ValueError("cannot lay out this size")
+        calls.append((preset, seed, gsd, size))
+        (out / f"{preset}_{seed}.png").write_bytes(b"x")
+        return {"image": f"{preset}_{seed}.png", "seed": seed, "gsd": gsd}, "ok"
+
+    kw = dict(stage="unit", index_head={"gsd_m": 0.2}, presets=["a", "b"], gsd_range=(0.1, 0.4),
+              size_range_m=(60.0, 80.0))
+    idx = common.render_levels(tmp_path, [100, 101, 102, 103], make_item, **kw)
+    index = json.loads(idx.read_text())
+    assert index["gsd_m"] == 0.2
+    assert [it["image"] for it in index["items"]] == ["a_100.png", "b_101.png", "b_103.png"]  # 102 skipped
+    for preset, seed, gsd, size in calls:
+        assert 0.1 <= gsd <= 0.4 and 60.0 <= size <= 80.0 and size % 2 == 0
+    first = list(calls)
+    # a second run resumes: nothing already written is rendered again
+    calls.clear()
+    common.render_levels(tmp_path, [100, 101, 102, 103, 104], make_item, **kw)
+    assert [c[1] for c in calls] == [104]
+    assert len(json.loads(idx.read_text())["items"]) == 4
+    # the draws depend only on (seed, stage, preset): a fresh folder gets the same levels
+    calls.clear()
+    common.render_levels(tmp_path / "again", [100, 101, 102, 103], make_item, **kw)
+    assert calls == first
+
+
+def test_data_commands_parse_the_shared_options(capsys):
+    from coastforge.train import detector_data, seg_data
+
+    for mod in (seg_data, detector_data):
+        with pytest.raises(SystemExit):
+            mod.main(["--help"])
+        out = capsys.readouterr().out
+        assert "--seeds" in out and "--minutes" in out and "--out" in out
+        with pytest.raises(InputError, match="reserved"):
+            mod.main(["--out", "unused", "--seeds", "5:7"])
