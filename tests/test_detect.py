@@ -259,3 +259,30 @@ def test_class_map_water_is_used(scene):
     assert not any(d.category in ("boat", "pier_walkway") for d in detect(image, DetectConfig(), class_map=land))
     with pytest.raises(InputError, match="class map shape"):
         detect(image, DetectConfig(), class_map=ClassMap(ids=ids[:10], grid=image.grid))
+
+
+def test_detection_bench_reports_images_a_backend_cannot_run_as_na(tmp_path, capsys):
+    """The learned detector refuses 8 m/px satellite images: the bench prints a n/a row and goes on."""
+    import json
+
+    from coastforge.bench.detection import bench_real, print_scores
+    from coastforge.fsio import write_png
+
+    s2 = tmp_path / "sen2ships"
+    for city in ("a", "b"):
+        (s2 / city).mkdir(parents=True)
+        rgb = np.full((64, 64, 3), (20, 60, 90), np.uint8)
+        rgb[30:32, 20:26] = 230  # a ship
+        write_png(s2 / city / "image.png", rgb)
+        (s2 / city / "labels.txt").write_text("20 30 26 30 26 32 20 32 ship 0\n")
+    entries = [{"city": c, "image": f"{c}/image.png", "ground_gsd_m": 8.0, "obb_dota": f"{c}/labels.txt"}
+               for c in ("a", "b")]
+    (s2 / "MANIFEST.json").write_text(json.dumps(entries))
+    rows = bench_real(tmp_path, "learned", DetectConfig(), None)
+    assert [r.name for r in rows] == ["sen2ships a", "sen2ships b"]
+    assert all(r.na and "m/px" in r.na for r in rows)
+    print_scores(rows)
+    out = capsys.readouterr().out
+    assert out.count("n/a (") == 2
+    rows = bench_real(tmp_path, "classical", DetectConfig(), None)
+    assert [r.na for r in rows] == [None, None] and rows[0].n_truth == 1

@@ -151,3 +151,18 @@ def test_bad_gsd_is_refused(tiny_level):
     det = LearnedDetector(DetectConfig())
     with pytest.raises(InputError, match="m/px"):
         det.detect(GeoImage(rgb=img.rgb, grid=Grid(img.grid.width_px, img.grid.height_px, 8.0)), None, 0)
+
+
+def test_floor_adds_weaker_boxes_after_the_same_confident_ones(tiny_level):
+    img, _ = tiny_level
+    det = LearnedDetector(DetectConfig())
+    strong = det.detect(img, None, 0)
+    both = det.detect(img, None, 0, floor=0.05)
+    def key(dets):
+        return [(d.category, round(d.score, 6), round(d.cx_px, 3), round(d.cy_px, 3), round(d.yaw_deg, 3))
+                for d in dets]
+
+    assert key([d for d in both if det.is_confident(d)]) == key(strong)  # the confident boxes are unchanged
+    weak = [d for d in both if not det.is_confident(d)]
+    assert weak and all(0.05 <= d.score < det.class_threshold[d.category] for d in weak)
+    assert key(det.detect(img, None, 0)) == key(strong)  # the floor does not stick

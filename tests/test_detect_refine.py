@@ -122,3 +122,35 @@ def test_dark_water_patches_are_not_boats():
     hull = Detection("boat", 0.5, 115.0, 80.0, 44.0, 16.0, -20.0)
     out = refine_boxes(rgb, [weed, hull], 0.1)
     assert len(out) == 1 and out[0].cx_px > 100
+
+
+def test_a_large_dark_hull_is_kept_a_small_dark_patch_is_not():
+    # 0.2 m/px: a 9 m dark-blue hull with a lighter deck line and a 4 m patch of darker water
+    # (the water's colour at 60 %), both darker than the water with about its chromaticity
+    water = (50, 105, 115)
+    big = np.zeros((160 * SS, 200 * SS, 3), np.uint8)
+    big[:] = water
+    dark = tuple(int(c * 0.45) for c in water)
+    cv2.ellipse(big, (60 * SS, 80 * SS), (22 * SS, 8 * SS), -10, 0, 360, dark, -1)  # 45 px = 9 m
+    cv2.ellipse(big, (60 * SS, 80 * SS), (10 * SS, 1 * SS), -10, 0, 360, (90, 110, 120), -1)
+    weed = tuple(int(c * 0.6) for c in water)
+    cv2.ellipse(big, (150 * SS, 80 * SS), (10 * SS, 4 * SS), 20, 0, 360, weed, -1)
+    rgb = cv2.resize(big, (200, 160), interpolation=cv2.INTER_AREA)
+    hull = Detection("boat", 0.6, 60.0, 80.0, 45.0, 17.0, 10.0)
+    patch = Detection("boat", 0.5, 150.0, 80.0, 20.0, 8.0, 20.0)
+    from coastforge.detection.refine import core_evidence, is_dark_water
+
+    assert 0.8 <= core_evidence(rgb, hull, 0.2)["shadow"] < 0.95  # a dark-water-like core, yet ...
+    assert not is_dark_water(rgb, hull, 0.2)  # ... yacht-sized: a dark hull
+    assert is_dark_water(rgb, patch, 0.2)
+    assert [d.cx_px for d in refine_boxes(rgb, [hull, patch], 0.2)] == [pytest.approx(60.0, abs=2.0)]
+
+
+def test_an_axis_off_by_more_than_the_search_is_still_turned_when_clear():
+    # a white boat at 0.2 m/px, the detector's axis 13° off: the optimum lies at the search's edge
+    rgb = _scene([(80.0, 80.0, 40.0, 15.0, 25.0, (230, 230, 225))], shadow=(0.0, 0.0))
+    det = Detection("boat", 0.9, 80.0, 80.0, 40.0, 15.0, 38.0, heading_known=True, heading_confidence=0.9)
+    sym = symmetry_axis(rgb, det)
+    assert sym is not None and abs(sym[0]) > 11.75 and sym[2] >= 1.4  # beyond the old limit, clear
+    out = refine_box(rgb, det, 0.2)
+    assert _err(out.yaw_deg, 25.0) < 1.5

@@ -82,6 +82,7 @@ class TerrainConfig:
 class DetectConfig:
     backend: str = "classical"
     hybrid_union: bool = False  # hybrid backend: also keep classical boats no learned box overlaps
+    hybrid_support: float = 0.1  # ... only where the net's boat score reaches this (0: keep them all)
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0
     min_vehicle_length_m: float = 3.0

@@ -6,7 +6,8 @@ the truth has a heading, RMS relative length and width errors (Lrel, Wrel) and t
 metres of the matched boxes, pier structures found, and the time. ``--set detect.refine=false`` gives
 the backend's boxes before refinement (``coastforge.detection.refine``). Real data: the DOTA marina crop
 (ships + harbor structures), the DOTA vehicles crop and the sen2ships ports from ``../shared/data``;
-synthetic: ``coastforge.synth`` levels at both resolutions.
+synthetic: ``coastforge.synth`` levels at both resolutions. An image the backend cannot run on (the learned
+detector on the 7-9 m/px sen2ships ports) gets a row "n/a (reason)" and the others are still measured.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ class Score:
     centre_err: list = field(default_factory=list)  # centre distance of matched boxes (pixels)
     gsd_m: float = float("nan")
     extra: dict = field(default_factory=dict)
+    na: str | None = None  # why this row could not be measured (e.g. the backend refuses the image's GSD)
 
     @property
     def recall(self):
@@ -166,19 +168,29 @@ def _run(image: GeoImage, backend: str, config: DetectConfig, **opts) -> tuple[l
     return dets, time.perf_counter() - t0
 
 
+def _try_run(name: str, image: GeoImage, backend: str, config: DetectConfig,
+             **opts) -> tuple[list[Detection], float] | Score:
+    """``_run``, or a "n/a" row naming why the backend cannot run on this image (e.g. the learned
+    detector on 8 m/px satellite images): the other images are still measured."""
+    from ..errors import InputError
+
+    try:
+        return _run(image, backend, config, **opts)
+    except InputError as exc:
+        return Score(name, gsd_m=image.grid.gsd_m, na=str(exc).split(";")[0])
+
+
 def bench_real(data: Path, backend: str, config: DetectConfig, overlay_dir: Path | None, **opts) -> list[Score]:
+    """Scores on the real images found under ``data``; an image the backend cannot run on (the learned
+    detector on 8 m/px satellite ports) gives a "n/a (reason)" row and the others are still measured."""
     from ..detection import write_overlay
     from ..io import read_image
 
-    scores = []
-    marina = data / "aerial" / "marina_p0861"
-    if marina.is_dir():
-        img = read_image(marina / "image.jpg", gsd_m=0.2)
-        dets, dt = _run(img, backend, config, **opts)
-        lab = read_dota_yolo(marina / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
+    def marina(img: GeoImage, dets: list[Detection], dt: float, folder: Path) -> Score:
+        lab = read_dota_yolo(folder / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
         ships = [t for c, t in lab if c == "ship"]
         harbors = [t for c, t in lab if c == "harbor"]
-        s = Score("marina_p0861 boats", gsd_m=0.2)
+        s = Score("marina_p0861 boats", gsd_m=img.grid.gsd_m)
         boats = [d for d in dets if d.category == "boat"]
         pairs = match(ships, boats, s)
         # the right edge (x > 96 %) holds a column of boats that DOTA labelled only partly
@@ -188,35 +200,52 @@ def bench_real(data: Path, backend: str, config: DetectConfig, overlay_dir: Path
                    "precision_outside_strip": round(s.matched / max(1, s.n_pred - strip), 3),
                    "piers_found": f"{piers_found(harbors, dets)}/{len(harbors)}",
                    "pier_boxes": sum(d.category.startswith("pier") for d in dets),
-                   "cars_found(unlabelled)": sum(d.category == "vehicle" for d in dets), "seconds": round(dt, 2)}
-        scores.append(s)
-        if overlay_dir:
-            write_overlay(overlay_dir / "marina_p0861.png", img.rgb, dets)
-    veh = data / "aerial" / "vehicles_p1053"
-    if veh.is_dir():
-        img = read_image(veh / "image.jpg", gsd_m=0.125)
-        dets, dt = _run(img, backend, config, **opts)
-        lab = read_dota_yolo(veh / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
+                   "cars_found(unlabelled)": sum(d.category == "vehicle" for d in dets),
+                   "seconds": round(dt, 2)}
+        return s
+
+    def vehicles(img: GeoImage, dets: list[Detection], dt: float, folder: Path) -> Score:
+        lab = read_dota_yolo(folder / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
         cars = [t for c, t in lab if c in ("small vehicle", "large vehicle")]
-        s = Score("vehicles_p1053 vehicles")
+        s = Score("vehicles_p1053 vehicles", gsd_m=img.grid.gsd_m)
         match(cars, [d for d in dets if d.category == "vehicle"], s)
         s.extra = {"boats_reported": sum(d.category == "boat" for d in dets), "seconds": round(dt, 2)}
-        scores.append(s)
-        if overlay_dir:
-            write_overlay(overlay_dir / "vehicles_p1053.png", img.rgb, dets)
+        return s
+
+    def ships(truth_path: Path, name: str):
+        def score(img: GeoImage, dets: list[Detection], dt: float, _folder: Path) -> Score:
+            s = Score(name, gsd_m=img.grid.gsd_m)
+            match(read_dota_px(truth_path), [d for d in dets if d.category == "boat"], s)
+            s.extra = {"seconds": round(dt, 2)}
+            return s
+        return score
+
+    # (name, image path, GSD, scoring, overlay file)
+    jobs = []
+    folder = data / "aerial" / "marina_p0861"
+    if folder.is_dir():
+        jobs.append(("marina_p0861 boats", folder / "image.jpg", 0.2, marina, "marina_p0861.png"))
+    folder = data / "aerial" / "vehicles_p1053"
+    if folder.is_dir():
+        jobs.append(("vehicles_p1053 vehicles", folder / "image.jpg", 0.125, vehicles, "vehicles_p1053.png"))
     s2 = data / "sen2ships"
     man = s2 / "MANIFEST.json"
     if man.is_file():
         for entry in json.loads(man.read_text()):
-            img = read_image(s2 / entry["image"], gsd_m=float(entry["ground_gsd_m"]))
-            dets, dt = _run(img, backend, config, **opts)
-            truth = read_dota_px(s2 / entry["obb_dota"])
-            s = Score(f"sen2ships {entry['city']}")
-            match(truth, [d for d in dets if d.category == "boat"], s)
-            s.extra = {"seconds": round(dt, 2)}
-            scores.append(s)
-            if overlay_dir:
-                write_overlay(overlay_dir / f"sen2ships_{entry['city']}.png", img.rgb, dets)
+            name = f"sen2ships {entry['city']}"
+            jobs.append((name, s2 / entry["image"], float(entry["ground_gsd_m"]),
+                         ships(s2 / entry["obb_dota"], name), f"sen2ships_{entry['city']}.png"))
+    scores = []
+    for name, path, gsd, score, overlay in jobs:
+        img = read_image(path, gsd_m=gsd)
+        got = _try_run(name, img, backend, config, **opts)
+        if isinstance(got, Score):
+            scores.append(got)
+            continue
+        dets, dt = got
+        scores.append(score(img, dets, dt, path.parent))
+        if overlay_dir:
+            write_overlay(overlay_dir / overlay, img.rgb, dets)
     return scores
 
 
@@ -291,6 +320,9 @@ def print_scores(scores: list[Score]) -> None:
     print(f"{'set':34s} {'truth':>5s} {'pred':>5s} {'recall':>6s} {'prec':>6s} {'orRMSE':>6s} {'head':>6s} "
           f"{'Lrel':>6s} {'Wrel':>6s} {'ctr_m':>6s}  extra")
     for s in scores:
+        if s.na is not None:
+            print(f"{s.name:34s} n/a ({s.na})")
+            continue
         lr, wr = s.size_rmse
         print(f"{s.name:34s} {s.n_truth:5d} {s.n_pred:5d} {_fmt(s.recall)} {_fmt(s.precision)} "
               f"{_fmt(s.orient_rmse)} {_fmt(s.heading_acc)} {_fmt(lr)} {_fmt(wr)} {_fmt(s.centre_rmse_m)}  {s.extra}")

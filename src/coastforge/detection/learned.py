@@ -117,8 +117,13 @@ class LearnedDetector:
         self.class_threshold = {c: float(tuned.get(c, base)) for c in self.meta["classes"]}
         self.threshold = min([base, *self.class_threshold.values()])
 
-    def run(self, work: np.ndarray) -> np.ndarray:
-        """Decoded rows (see ``decode``) for one uint8 RGB image at the working GSD (tiled)."""
+    def is_confident(self, det: Detection) -> bool:
+        """Whether a box passes its class's threshold (``detect(..., floor=...)`` also gives weaker ones)."""
+        return det.score >= self.class_threshold.get(det.category, self.threshold)
+
+    def run(self, work: np.ndarray, threshold: float | None = None) -> np.ndarray:
+        """Decoded rows (see ``decode``) for one uint8 RGB image at the working GSD (tiled), down to
+        ``threshold`` (default: the lowest class threshold)."""
         import cv2
 
         from .yolo import slice_windows
@@ -135,14 +140,18 @@ class LearnedDetector:
                                           else cv2.BORDER_REPLICATE)
             x = np.ascontiguousarray(tile.transpose(2, 0, 1)[None].astype(np.float32))
             _heat, peaks, reg = self.session.run(["heat", "peaks", "reg"], {"image": x})
-            d = decode(peaks[0], reg[0], self.threshold, stride)
+            d = decode(peaks[0], reg[0], self.threshold if threshold is None else threshold, stride)
             d = d[(d[:, 2] < tw) & (d[:, 3] < th)]  # nothing from the padding
             d[:, 2] += c0
             d[:, 3] += r0
             rows.append(d)
         return np.concatenate(rows, 0) if rows else np.zeros((0, 8))
 
-    def detect(self, image: GeoImage, class_map: ClassMap | None = None, seed: int = 0) -> list[Detection]:
+    def detect(self, image: GeoImage, class_map: ClassMap | None = None, seed: int = 0,
+               floor: float | None = None) -> list[Detection]:
+        """Boxes above each class's threshold; with ``floor``, also the weaker ones down to ``floor``
+        after them, as they come from the network (overlapping ones are not merged): the hybrid
+        detector uses them as evidence for the classical boxes (tell them apart with ``is_confident``)."""
         import cv2
 
         rgb = image.rgb
@@ -164,9 +173,11 @@ class LearnedDetector:
                   "vehicle": (cfg.min_vehicle_length_m * 0.6, cfg.max_vehicle_length_m),
                   "buoy": (0.0, 4.0)}
         dets = []
-        for c, score, cx, cy, length, width, yaw, conf in self.run(work):
+        rows = self.run(work, None if floor is None else min(float(floor), self.threshold))
+        for c, score, cx, cy, length, width, yaw, conf in rows:
             cat = classes[int(c)]
-            if score < self.class_threshold[cat]:
+            thr = self.class_threshold[cat]
+            if score < (thr if floor is None else min(floor, thr)):
                 continue
             lo, hi = limits.get(cat, (0.0, math.inf))
             if not (lo <= length * work_gsd <= hi):
@@ -181,4 +192,6 @@ class LearnedDetector:
         # the network's front is kept even when weakly confident: on the synthetic validation levels
         # its sign beat the silhouette/cabin cues of ``detection.heading`` (which were worse than a
         # coin flip on these vehicles), so those cues are not mixed in
-        return rotated_nms(dets, cfg.nms_iou, class_aware=False, ioa_threshold=0.8)
+        strong = [d for d in dets if self.is_confident(d)]
+        weak = [d for d in dets if not self.is_confident(d)]  # evidence only: not de-duplicated (speed)
+        return rotated_nms(strong, cfg.nms_iou, class_aware=False, ioa_threshold=0.8) + weak

@@ -35,11 +35,18 @@ _MIN_UP_PX = 24.0  # silhouette crops are upsampled until the box is this many s
 SYM_PX, SYM_HV = 48.0, 0.45  # samples across the box; mirror rows each side (x width)
 BUOY_MAX_ASPECT, BUOY_MIN_AREA_M2, BUOY_MIN_PEAK = 1.4, 0.25, 24.0  # see ``is_buoy``
 DARK_WATER_SHADOW, DARK_WATER_CONTRAST = 0.8, 0.8  # see ``is_dark_water``
+# ... dark hulls: a box at least this long (m) must be darker water on nearly all its core to go
+DARK_HULL_MIN_M, DARK_HULL_MIN_PX, DARK_HULL_SHADOW = 7.5, 20.0, 0.95  # ... seen this many pixels long
 SILHOUETTE_MIN_PX = 30.0  # vehicles' lengths are taken from their silhouette from this size up
 SYM_MAX_DEG = 12.0  # the axis is searched this far either side of the detector's
 # a turn of more than 5° needs a clear optimum (mean / best mirror cost): on the synthetic levels every
 # such turn with >= 1.25 helped; on the real marina the harmful ones had 1.08-1.22
 SYM_BIG_TURN_CONTRAST = 1.25
+# an optimum at the edge of the search (up to SYM_MAX_DEG + 1.5 after the fine step) is kept when this
+# clear: the detector's axis was off by more than the search reaches and the turn goes the right way
+# (synthetic seeds 0-1: 3-m boats at 0.2 m/px off by 9-14°, edge turns with contrast >= 1.4 all helped,
+# the one harmful edge turn had 1.29)
+SYM_EDGE_CONTRAST = 1.4
 
 
 def _lab_window(rgb: np.ndarray, cx: float, cy: float, reach: float) -> tuple[np.ndarray, tuple[int, int]]:
@@ -311,8 +318,8 @@ def refine_box(rgb: np.ndarray, det: Detection, gsd_m: float, min_fill: float = 
     cur = det
     if axis and det.category != "buoy" and L0 >= 1.3 * W0:  # round things have no axis
         sym = symmetry_axis(rgb, det)
-        if sym is not None and abs(sym[0]) < SYM_MAX_DEG - 0.25 and (
-                abs(sym[0]) <= 5.0 or sym[2] >= SYM_BIG_TURN_CONTRAST):
+        inside = sym is not None and (abs(sym[0]) < SYM_MAX_DEG - 0.25 or sym[2] >= SYM_EDGE_CONTRAST)
+        if inside and (abs(sym[0]) <= 5.0 or sym[2] >= SYM_BIG_TURN_CONTRAST):
             cur = _shift(det, 0.0, sym[1], yaw_deg=float((det.yaw_deg + sym[0] + 180.0) % 360.0 - 180.0))
             note(f"axis {sym[0]:+.2f} deg")
         else:
@@ -402,8 +409,9 @@ def is_buoy(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
 def is_dark_water(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
     """A boat box whose middle is only darker water (weed, a submerged rock, a cloud or tree shadow:
     darker than the water around with its chromaticity), or hardly differs from it. Hulls and decks
-    seen from above are brighter or of another colour. On the synthetic levels this drops 13 of 22
-    false boats and no true one; on the real marina 2 of 150 true boxes (dark hulls) and 1 false."""
+    seen from above are brighter or of another colour; a yacht-sized box needs a darker core
+    throughout (``DARK_HULL_*``: dark hulls are large, weed patches on the synthetic levels small). On
+    the synthetic levels this drops 13 of 22 false boats and no true one."""
     # fast path (speed): a core clearly brighter than the box's surroundings is no dark patch
     win = _lab_window(rgb, det.cx_px, det.cy_px, 0.5 * math.hypot(det.length_px, det.width_px) + 2 * max(
         3.0, 0.6 / gsd_m) + 3)
@@ -414,7 +422,13 @@ def is_dark_water(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
     if float(np.median(mid[..., 0])) > float(np.median(lab[..., 0])) + 15.0:
         return False
     e = core_evidence(rgb, det, gsd_m)
-    return e["shadow"] >= DARK_WATER_SHADOW or e["contrast"] < DARK_WATER_CONTRAST
+    if e["contrast"] < DARK_WATER_CONTRAST:
+        return True
+    # dark patches on the synthetic levels are small (2-7 m, weed and rocks); a yacht-sized dark box
+    # with contrast is a dark hull (real marina: 2 of 2 such true boats, 0 false at 7.5 m and up)
+    # (seen large enough: not a satellite speck)
+    big = det.length_px * gsd_m >= DARK_HULL_MIN_M and det.length_px >= DARK_HULL_MIN_PX
+    return e["shadow"] >= (DARK_HULL_SHADOW if big else DARK_WATER_SHADOW)
 
 
 def refine_boxes(rgb: np.ndarray, detections: list[Detection], gsd_m: float,
