@@ -46,6 +46,58 @@ def test_mask_on_water_and_ground_ignores_shadow():
         assert _iou(m, truth) > 0.9
 
 
+def test_grey_parts_of_an_object_on_grey_ground_are_not_shadow():
+    """A white deck crossed by dark neutral-grey stripes on light grey ground: the stripes look like a
+    shadow by colour, but they lie inside the object's outline; the cast shadow beside it stays out."""
+    rng = stage_rng(0, "test-embed-stripes")
+    yy, xx = np.mgrid[0:64, 0:64]
+    truth = (abs(yy - 32) < 8) & (abs(xx - 32) < 20)
+    img = np.clip(np.array((190, 188, 184)) + rng.normal(0, 3, (64, 64, 3)), 0, 255)
+    shadow = (abs(yy - 40) < 8) & (abs(xx - 40) < 20) & ~truth
+    img[shadow] = img[shadow] * np.array([0.55, 0.57, 0.66])
+    img[truth] = (246, 246, 243)
+    stripes = truth & ((xx - 15) % 8 < 3) & (abs(xx - 32) < 16)  # inside a white rim
+    img[stripes] = (118, 117, 115)
+    m = object_mask(img.astype(np.uint8))
+    assert _iou(m, truth) > 0.9
+    assert (m & shadow).sum() < 0.05 * shadow.sum()
+
+
+def test_integrated_contrast_is_kept_when_pixels_are_averaged():
+    """A 0.6 m tuft seen at 0.02 m/px and area-averaged to 0.2 m/px (3 px) has the same integrated contrast;
+    a fainter tuft of the same size has a clearly different one."""
+    import cv2
+
+    from coastforge.assets.embed import integrated_contrast
+
+    light = standard_view_lightings()[1]
+    out = {}
+    for name, colour in (("bright", (60, 170, 50)), ("faint", (30, 75, 40))):
+        fine = render_mesh_view(_box((0.6, 0.6, 0.05), colour), 0.02, 120, light, "ground", seed=3)
+        coarse = cv2.resize(fine, (12, 12), interpolation=cv2.INTER_AREA)
+        c_fine = integrated_contrast(fine, object_mask(fine), 0.02)
+        c_coarse = integrated_contrast(coarse, object_mask(coarse), 0.2)
+        np.testing.assert_allclose(c_coarse, c_fine, rtol=0.25, atol=0.01)
+        out[name] = c_fine
+    assert np.abs(out["bright"] - out["faint"]).max() > 0.1  # m^2 of full contrast
+
+
+def test_size_code_of_a_few_pixels_is_wide():
+    """A 3 px object measured 4 px long still shares size code with its 3 px self; at 30 vs 40 px it does not."""
+    import math
+
+    from coastforge.assets.embed import SIZE_PX_UNCERTAINTY, _rbf
+
+    def code(px, gsd=0.2):
+        return _rbf(math.log(px * gsd), math.log(0.1), math.log(400.0), 96, SIZE_PX_UNCERTAINTY / px)
+
+    def cos(a, b):
+        return float(a @ b / np.linalg.norm(a) / np.linalg.norm(b))
+
+    assert cos(code(3), code(4)) > 0.5
+    assert cos(code(30), code(40)) < 0.2
+
+
 def test_rendered_mask_matches_the_footprint():
     mesh = _hull()
     for bg in ("water", "ground"):

@@ -176,7 +176,12 @@ def test_build_full_views_query_and_library_json(two_assets, tmp_path):
     # paintable assets (vehicles, small boats) are also embedded repainted: a red car still finds the car
     rec = {r["id"]: r for r in doc["assets"]}
     assert len(rec["blue_car"]["paint_views"]) == 7 and len(rec["red_boat"]["paint_views"]) == 7
-    assert rec["blue_car"]["index_rows"][1] == (6 + 7) * 2
+    # query-like views: the 4.5 m car (views at 0.2 m/px) is under 40 px long at 0.28 and 0.4 m/px; those
+    # stand in for the 2x downsampled copies (0.4 m/px), which are left out
+    qv = rec["blue_car"]["query_views"]
+    assert sorted({q["gsd_m"] for q in qv}) == [0.28, 0.4] and len(qv) == 2 * 6
+    assert (tmp_path / "lib" / rec["blue_car"]["query_views_file"]).is_file()
+    assert rec["blue_car"]["index_rows"][1] == (6 + 7) + len(qv)
     from coastforge.assets.library import repaint
     from coastforge.render import render_mesh_view, standard_view_lightings
 
@@ -313,6 +318,81 @@ def test_refuses_another_embedder(two_assets, tmp_path):
         lib.check_embedder(Other())
     with pytest.raises(LibraryError, match="another embedder"):
         lib.search(np.ones((1, 7), np.float32), 1)
+
+
+def test_library_of_an_older_embedder_version_asks_for_a_rebuild(two_assets, tmp_path):
+    out = tmp_path / "lib"
+    build_library(two_assets, out, config=SMALL, workers=1)
+    doc = json.loads((out / "library.json").read_text())
+    doc["embedder"]["settings"]["version"] -= 1  # what a library built before the embedder changed holds
+    for a in doc["assets"]:
+        a["hashes"]["embedding"] = "0" * 64
+    (out / "library.json").write_text(json.dumps(doc))
+    old = Library.load(out)
+    img, gsd = old.view("red_boat", 0, "water")
+    with pytest.raises(LibraryError, match=r"version \d+ of the 'default' embedder.*rebuild it"):
+        old.query(img, gsd)
+    # building again over it re-embeds the stored views (no re-render) and the library answers again
+    again = build_library(two_assets, out, config=SMALL, workers=1)
+    assert again.build_report.rendered == () and set(again.build_report.embedded) == {"red_boat", "blue_car"}
+    assert again.query(img, gsd, k=1)[0][0] == "red_boat"
+
+
+def _buoy_mesh(diameter=0.6, height=0.8, colour=(220, 40, 30)) -> trimesh.Trimesh:
+    m = trimesh.creation.cylinder(radius=diameter / 2, height=height, sections=24)
+    m.apply_translation([0, 0, height / 2])
+    m.visual.face_colors = np.array([*colour, 255], np.uint8)
+    return m
+
+
+def test_query_views_of_small_assets(tmp_path, monkeypatch):
+    """Assets a few pixels long at a configured GSD are also rendered there (random yaw, cropped like the
+    matcher's crops), stored in one file, reused on rebuilds and re-embedded from disk."""
+    from coastforge.assets import embed as E
+    from coastforge.assets.library import query_view_plan, read_query_views
+    from coastforge.render import render_mesh_view, standard_view_lightings
+
+    src = tmp_path / "src"
+    src.mkdir()
+    _write(_buoy_mesh(), src / "buoy.glb", y_up=True)
+    _write(_boat_mesh(), src / "boat.glb", y_up=True)
+    man = _manifest(src, [{"id": "buoy", "category": "buoy", "mesh": "buoy.glb"},
+                          {"id": "red_boat", "category": "boat", "mesh": "boat.glb", "length_m": 6.0}])
+    cfg = LibraryConfig(lightings=1, backgrounds=("water",), embed_scales=(1.0, 2.0), view_size_px=64,
+                        paint_variants=False, query_view_gsds_m=(0.1, 0.2, 0.4), query_view_max_px=20)
+    out = tmp_path / "lib"
+    lib = build_library(man, out, config=cfg, workers=1)
+    doc = {a["id"]: a for a in json.loads((out / "library.json").read_text())["assets"]}
+    buoy, boat = doc["buoy"], doc["red_boat"]
+    # the 0.6 m buoy is under 20 px at every configured GSD; the 6 m boat only at 0.4 m/px (15 px)
+    assert [q["gsd_m"] for q in buoy["query_views"]] == [0.1, 0.2, 0.4]
+    assert [q["gsd_m"] for q in boat["query_views"]] == [0.4]
+    plan = query_view_plan(lib.asset("buoy").dims_m, buoy["view_gsd_m"], cfg)
+    assert [g for g, _ in plan] == [0.1, 0.2, 0.4]
+    assert [side for _, side in plan] == [13, 12, 12]  # 1.5 x the size + 4 px, at least 12 px
+    imgs = read_query_views(out / buoy["query_views_file"], 3)
+    assert [i.shape for i in imgs] == [(side, side, 3) for _, side in plan]
+    assert len({q["yaw_deg"] for q in buoy["query_views"]}) == 3  # random yaws
+    # rows: the view and its 2x copy (finer than the query-like views), then the three query-like views
+    assert buoy["index_rows"][1] == 2 + 3
+    # the boat's 2x copy (0.4 m/px) is left out: its query-like view stands for that scale
+    assert boat["index_rows"][1] == 1 + 1
+    # a 2 px buoy in a query finds the buoy
+    q = render_mesh_view(lib.mesh("buoy"), 0.3, 12, standard_view_lightings()[2], "water", yaw_deg=40, seed=5)
+    assert lib.query(q, 0.3, k=1)[0][0] == "buoy"
+    # rebuilt unchanged: nothing re-rendered; the file gone: that asset is re-rendered
+    assert build_library(man, out, config=cfg, workers=1).build_report.rendered == ()
+    (out / buoy["query_views_file"]).unlink()
+    assert build_library(man, out, config=cfg, workers=1).build_report.rendered == ("buoy",)
+    # another embedder setting: the stored views (query-like ones included) are re-embedded, not re-rendered
+    monkeypatch.setattr(E.DefaultEmbedder, "WEIGHTS", {**E.DefaultEmbedder.WEIGHTS, "lbp": 0.5})
+    again = build_library(man, out, config=cfg, workers=1)
+    assert again.build_report.rendered == () and set(again.build_report.embedded) == {"buoy", "red_boat"}
+    fresh = build_library(man, tmp_path / "fresh", config=cfg, workers=1)
+    np.testing.assert_allclose(again.index.vectors(), fresh.index.vectors(), atol=1e-5)
+    # bad configuration names the field
+    with pytest.raises(LibraryError, match="query_view_gsds_m"):
+        query_view_plan((1.0, 1.0, 1.0), 0.05, LibraryConfig(query_view_gsds_m=(0.1, -0.2)))
 
 
 # --------------------------------------------------------------------------- folders, thumbnails, CLI, kit

@@ -148,6 +148,11 @@ class LibraryConfig:
     embed_scales: tuple[float, ...] = (1.0, 2.0, 4.0)  # views are also embedded downsampled (coarse queries)
     workers: int = 0  # build processes; 0 = one per core (at most 4)
     paint_variants: bool = True  # also embed vehicles and small boats repainted in common body colours
+    # query-like views: each asset also rendered at these coarse GSDs (random yaw, every lighting and
+    # background, cropped like the matcher's crops) wherever it is shorter than query_view_max_px pixels:
+    # small objects in aerial images are a few pixels, which the downsampled standard views do not mimic
+    query_view_gsds_m: tuple[float, ...] = (0.05, 0.07, 0.1, 0.14, 0.2, 0.28, 0.4)
+    query_view_max_px: float = 40.0
 
 
 @dataclass(frozen=True)

@@ -7,13 +7,17 @@ Protocol (every embedder): ``name``, ``settings`` (a JSON-able dict recorded in 
 
 1. segments the object from its background with a border colour model (the crop's outer ring is
    background; minority colours on the ring are parts of the object or of neighbours and are dropped),
-   drops cast shadows (darker, bluer copies of the background), grows faint parts by hysteresis and
-   cuts neighbours joined by narrow bridges (cars parked side by side);
+   drops cast shadows (darker, bluer copies of the background) except inside the object's convex hull
+   (grey parts of an object on grey ground), grows faint parts by hysteresis and cuts neighbours joined
+   by narrow bridges (cars parked side by side);
 2. normalises rotation: the mask's principal axis becomes horizontal, the third moment picks which
    end points right (so both a library view and a query land in the same pose);
 3. describes the object by blocks, each a unit vector times a weight, so the inner product of two
    embeddings is a weighted sum of per-block similarities:
-   metric footprint (length, width, area in metres, as Gaussian soft-bins over log size),
+   metric footprint (length, width, area in metres, as Gaussian soft-bins over log size, widened by a
+   pixel's relative error so a 3 px object is not pinned to one size), integrated contrast (per channel,
+   the sum of pixel / background - 1 times the pixel area: conserved when pixels are averaged, so it is
+   what a 2 px object still shows; only on objects under ~16 px, where paint cannot be told from model),
    Lab colour (ab histogram, L histogram, a coarse colour layout along the body),
    silhouette (aspect, solidity, width profile along the length, rotation-invariant radial spectrum,
    Hu moments), gradients (HOG on the pose-normalised crop, rotation-invariant LBP histogram).
@@ -29,13 +33,26 @@ import numpy as np
 
 from ..errors import InputError
 
-_VERSION = 2
+_VERSION = 3
 SIZE_BINS = (96, 80, 80)  # Gaussian soft-bins over log length / width / area (sigma ~ 9 %, 9 %, 19 %)
 # segmentation (tuned on the retrieval benchmark; recorded in the embedder settings)
 THR_K = 7.0  # foreground = farther from every ring colour than median + THR_K robust sigmas
 HYST = 0.7  # fainter pixels (x threshold) join when they touch clear foreground
 MIN_SUPPORT = 0.2  # ring colours covering less of the ring are parts of the object or its neighbours
 SEPARATE = True  # cut neighbours joined by narrow bridges (parked cars, adjacent berths)
+RESTORE_DARK = True  # shadow-like pixels inside the object's convex hull are object parts (grey on grey)
+MIN_MASK_PX = 1  # a smaller mask falls back to the central disc (a tiny object is still itself, not a disc)
+# integrated contrast (what tells a few-pixel object apart): soft-bins of arcsinh(sum / A0) per channel. It is
+# colour-specific, so it counts fully only on objects up to FULL_PX long and is gone at 2 x FULL_PX: a car or
+# boat big enough to show its shape must still find its model in another paint (a library row with this
+# block also loses cosine against queries without it, so it must stay off at the sizes paint views have)
+CONTRAST_A0 = 0.005  # m^2
+CONTRAST_BINS = 48
+CONTRAST_FULL_PX = 8.0
+SIZE_PX_UNCERTAINTY = 1.0  # the size code widens by this many pixels' relative error (tiny objects)
+
+
+_LINEAR = ((np.arange(256, dtype=np.float64) / 255.0) ** 2.2).astype(np.float32)  # sRGB byte -> ~linear
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -49,10 +66,19 @@ def _centres(lo: float, hi: float, n: int) -> np.ndarray:
     return np.linspace(lo, hi, n)
 
 
-def _rbf(value: float, lo: float, hi: float, n: int) -> np.ndarray:
-    """Gaussian soft-binning of a scalar: the inner product of two codes falls smoothly with distance."""
+def _hist(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
+    """``np.histogram(x, n, (lo, hi))[0]`` as float32, without its overhead (values outside are dropped)."""
+    x = np.asarray(x, np.float64).ravel()
+    x = x[(x >= lo) & (x <= hi)]
+    idx = np.minimum(((x - lo) * (n / (hi - lo))).astype(np.intp), n - 1)
+    return np.bincount(idx, minlength=n).astype(np.float32)
+
+
+def _rbf(value: float, lo: float, hi: float, n: int, extra_sigma: float = 0.0) -> np.ndarray:
+    """Gaussian soft-binning of a scalar: the inner product of two codes falls smoothly with distance.
+    ``extra_sigma`` widens the bump for an uncertain value (in the units of ``value``)."""
     centres = _centres(lo, hi, n)
-    sigma = (hi - lo) / (n - 1)
+    sigma = math.hypot((hi - lo) / (n - 1), extra_sigma)
     v = float(np.clip(value, lo - sigma, hi + sigma))
     return np.exp(-0.5 * ((centres - v) / sigma) ** 2).astype(np.float32)
 
@@ -152,6 +178,7 @@ def _object_mask(rgb: np.ndarray) -> np.ndarray:
     slack = 6.0 / np.minimum(bg_rgb[nearest][:, 0], bg_rgb[nearest][:, 1])  # dark channels are noisy
     shadow = (k > 0.4) & (k < 0.97) & (np.abs(ratio[:, 0] - ratio[:, 1]) < 0.2 * k + slack) \
         & (ratio[:, 2] > 0.8 * k) & (ratio[:, 2] < 1.6 * k + 0.05)
+    fg_all = fg.reshape(h, w)
     fg = (fg & ~shadow).reshape(h, w)
     fg8 = fg.astype(np.uint8)
     if min(h, w) >= 40:  # drop speckle (glints, noise); a centred 3x3 kernel does not shift the mask
@@ -176,14 +203,33 @@ def _object_mask(rgb: np.ndarray) -> np.ndarray:
         sz = sizes[k - 1]
         xx, yy = cents[k]
         keep[k] = sz >= 0.05 * big and ((abs(yy - cy) < 0.4 * h and abs(xx - cx) < 0.4 * w) or sz == big)
-    mask = _fill_holes(keep[lbl])
+    mask = keep[lbl]
+    if RESTORE_DARK:
+        mask = _restore_dark_parts(mask, fg_all)
+    mask = _fill_holes(mask)
     if SEPARATE:
         mask = _separate_neighbours(mask)
-    if mask.sum() < 3:
+    if mask.sum() < MIN_MASK_PX:
         return _fallback_mask(h, w)
     return mask
 
 
+
+
+def _restore_dark_parts(mask: np.ndarray, fg_all: np.ndarray) -> np.ndarray:
+    """Give back the shadow-like pixels (darker, neutral copies of the background) that lie inside the
+    convex hull of the object: grey stripes, dark outlines and hull parts of an object on grey ground,
+    not a cast shadow (which falls outside the object, away from the sun)."""
+    import cv2
+
+    ys, xs = np.nonzero(mask)
+    if len(xs) < 3:
+        return mask
+    hull = cv2.convexHull(np.stack([xs, ys], 1).astype(np.int32))
+    inside = np.zeros(mask.shape, np.uint8)
+    cv2.fillConvexPoly(inside, hull, 1)
+    inside = cv2.erode(inside, np.ones((3, 3), np.uint8))  # not the shadow along the outline
+    return mask | (fg_all & (inside > 0))
 
 
 def _separate_neighbours(mask: np.ndarray) -> np.ndarray:
@@ -247,6 +293,23 @@ def _fallback_mask(h: int, w: int) -> np.ndarray:
     return ((yy - (h - 1) / 2) / (h / 4)) ** 2 + ((xx - (w - 1) / 2) / (w / 4)) ** 2 <= 1.0
 
 
+def integrated_contrast(rgb: np.ndarray, mask: np.ndarray, gsd: float) -> np.ndarray:
+    """Per (roughly linear) RGB channel, the sum over the object and a 2 px margin of pixel / background - 1,
+    times the pixel area: an object's contrast in m^2. Averaging pixels conserves it, so a tuft 2 px wide
+    and its 40 px view agree, and a bright tuft differs from a faint one of the same size."""
+    import cv2
+
+    lin = _LINEAR[rgb]
+    h, w = mask.shape
+    ring = max(1, min(h, w) // 20)
+    edge = np.zeros((h, w), bool)
+    edge[:ring], edge[-ring:], edge[:, :ring], edge[:, -ring:] = True, True, True, True
+    bg = np.median(lin[edge], axis=0) + 1e-3
+    region = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
+    region &= ~edge
+    return ((lin[region] / bg) - 1.0).sum(0) * gsd * gsd
+
+
 def normalise_pose(rgb: np.ndarray, mask: np.ndarray):
     """Rotate so the mask's major axis is horizontal (heavier end right); crop to the object.
 
@@ -296,7 +359,7 @@ class DefaultEmbedder:
     # Block weights (relative importance in the inner product); tuned on the retrieval benchmark.
     WEIGHTS = {
         "size": 1.0, "colour_ab": 1.5, "colour_l": 0.5, "layout": 1.2,
-        "shape": 0.6, "profile": 0.6, "radial": 0.6, "hog": 0.9, "lbp": 0.4,
+        "shape": 0.6, "profile": 0.6, "radial": 0.6, "hog": 0.9, "lbp": 0.4, "contrast": 1.5,
     }
     CANON = (32, 64)  # pose-normalised crop (rows across the width, columns along the length)
     MAX_WORK_PX = 128  # larger crops are downsampled first: finer detail does not change the blocks
@@ -317,7 +380,10 @@ class DefaultEmbedder:
     def settings(self) -> dict:
         return {"version": _VERSION, "canon": list(self.CANON), "max_work_px": self.MAX_WORK_PX,
                 "size_bins": list(SIZE_BINS), "weights": dict(self.weights),
-                "segmentation": {"thr_k": THR_K, "hyst": HYST, "min_support": MIN_SUPPORT, "separate": SEPARATE}}
+                "size_px_uncertainty": SIZE_PX_UNCERTAINTY,
+                "contrast": {"a0": CONTRAST_A0, "bins": CONTRAST_BINS, "full_px": CONTRAST_FULL_PX},
+                "segmentation": {"thr_k": THR_K, "hyst": HYST, "min_support": MIN_SUPPORT, "separate": SEPARATE,
+                                 "restore_dark": RESTORE_DARK, "min_mask_px": MIN_MASK_PX}}
 
     def embed(self, images: Sequence[np.ndarray], gsd_m: Sequence[float]) -> np.ndarray:
         images = list(images)
@@ -351,18 +417,24 @@ class DefaultEmbedder:
         wt = self.weights
         blocks = []
         # metric footprint
+        # a mask a few pixels long is uncertain by about a pixel: widen the size code accordingly
+        u_l, u_w = SIZE_PX_UNCERTAINTY / length_px, SIZE_PX_UNCERTAINTY / width_px
         size = np.concatenate([
-            _rbf(math.log(max(length_px * gsd, 1e-3)), math.log(0.1), math.log(400.0), SIZE_BINS[0]),
-            _rbf(math.log(max(width_px * gsd, 1e-3)), math.log(0.05), math.log(80.0), SIZE_BINS[1]),
-            _rbf(math.log(max(area_px * gsd * gsd, 1e-4)), math.log(0.005), math.log(2e4), SIZE_BINS[2]),
+            _rbf(math.log(max(length_px * gsd, 1e-3)), math.log(0.1), math.log(400.0), SIZE_BINS[0], u_l),
+            _rbf(math.log(max(width_px * gsd, 1e-3)), math.log(0.05), math.log(80.0), SIZE_BINS[1], u_w),
+            _rbf(math.log(max(area_px * gsd * gsd, 1e-4)), math.log(0.005), math.log(2e4), SIZE_BINS[2], u_l + u_w),
         ])
         blocks.append(wt["size"] * _unit(size))
+        fade = float(np.clip(2.0 - length_px / CONTRAST_FULL_PX, 0.0, 1.0))
+        blocks.append(wt["contrast"] * fade * _unit(self._contrast(rgb, mask, gsd)) if fade > 0
+                      else np.zeros(3 * CONTRAST_BINS, np.float32))
         # colour: ab histogram (soft), L histogram
-        ab, _, _ = np.histogram2d(np.clip(fg[:, 1], -47.9, 47.9), np.clip(fg[:, 2], -47.9, 47.9),
-                                  bins=8, range=[[-48, 48], [-48, 48]])
+        ia = ((np.clip(fg[:, 1], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
+        ib = ((np.clip(fg[:, 2], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
+        ab = np.bincount(ia * 8 + ib, minlength=64).reshape(8, 8)
         ab = cv2.GaussianBlur(ab.astype(np.float32), (3, 3), 0.7)
         blocks.append(wt["colour_ab"] * _unit(np.sqrt(ab)))
-        lh = np.histogram(fg[:, 0], bins=10, range=(0, 100))[0].astype(np.float32)
+        lh = _hist(fg[:, 0], 0.0, 100.0, 10)
         lh = np.convolve(lh, [0.25, 0.5, 0.25], mode="same")
         blocks.append(wt["colour_l"] * _unit(np.sqrt(lh)))
         # colour layout along the body: 6 x 3 cells of mean Lab relative to the object's mean
@@ -392,6 +464,11 @@ class DefaultEmbedder:
         blocks.append(wt["hog"] * _unit(np.sqrt(self._hog(canon))))
         blocks.append(wt["lbp"] * _unit(np.sqrt(self._lbp(lab[:, :, 0], cmask))))
         return np.concatenate(blocks)
+
+    @staticmethod
+    def _contrast(rgb: np.ndarray, mask: np.ndarray, gsd: float) -> np.ndarray:
+        code = np.arcsinh(integrated_contrast(rgb, mask, gsd) / CONTRAST_A0)
+        return np.concatenate([_rbf(float(c), -12.0, 12.0, CONTRAST_BINS) for c in code])
 
     @staticmethod
     def _layout(lab: np.ndarray, cmask: np.ndarray) -> np.ndarray:
@@ -460,5 +537,5 @@ class DefaultEmbedder:
         m = cmask[1:-1, 1:-1]
         lbp = np.bincount(code[m].ravel(), minlength=10)[:10].astype(np.float32)
         gm = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))[cmask]
-        gh = np.histogram(np.log1p(gm), bins=6, range=(0, 6))[0].astype(np.float32)
+        gh = _hist(np.log1p(gm), 0.0, 6.0, 6)
         return np.concatenate([lbp / max(lbp.sum(), 1), gh / max(gh.sum(), 1)])

@@ -7,6 +7,9 @@ A library is a folder::
     meshes/<id>.glb     each model normalised to the scene frame (metres, z up, forward +x;
                         z = 0 at the waterline for floating assets, at the base for the rest)
     views/<id>/l<k>_<background>.png   top-down renders, lighting k of 3, background water|ground
+    views/<id>/paint<k>_<background>.png   vehicles and small boats repainted in common body colours
+    views/<id>/query_views.npz  small assets also rendered as a query sees them: at coarse GSDs (a few
+                        pixels long), random yaw, cropped like the matcher's crops (LibraryConfig.query_view_*)
 
 ``build_library`` re-renders only assets whose mesh or settings changed and re-embeds only what the
 embedder has not seen. ``Library.load`` checks the format, the index hash and shape, and the
@@ -322,6 +325,8 @@ def view_settings(config: LibraryConfig) -> dict:
         "lighting_params": [dataclasses.asdict(l) for l in view_lightings()[: config.lightings]],
         "renderer": _render_source_hash(),
         "paint_variants": bool(config.paint_variants), "paints": [list(p) for p in PAINTS],
+        "query_views": {"version": 2, "gsds_m": [float(g) for g in config.query_view_gsds_m],
+                        "max_px": float(config.query_view_max_px), "pad": QUERY_PAD, "min_px": QUERY_MIN_PX},
     }
 
 
@@ -363,6 +368,58 @@ def scale_variants(img: np.ndarray, gsd: float, length_m: float, factors: Sequen
         small = cv2.resize(img, (max(4, round(w / f)), max(4, round(h / f))), interpolation=cv2.INTER_AREA)
         out.append((small, gsd * w / small.shape[1]))
     return out
+
+
+QUERY_PAD = 1.5  # query-like views are cropped as the matcher crops a detection: 1.5 x its size + 4 px ...
+QUERY_MIN_PX = 12  # ... and at least this many pixels, so even a one-pixel object has background around it
+
+
+def query_view_plan(dims_m: Sequence[float], view_gsd: float, config: LibraryConfig) -> list[tuple[float, int]]:
+    """(gsd, crop side in px) of the query-like views of an asset: every configured GSD coarser than its
+    standard views at which it is shorter than ``query_view_max_px`` pixels."""
+    size = round(max(float(dims_m[0]), float(dims_m[1])), 4)  # as recorded (dims_m are stored rounded)
+    out = []
+    for g in sorted(float(x) for x in config.query_view_gsds_m):
+        if not (g > 0 and math.isfinite(g)):
+            raise LibraryError(f"library.query_view_gsds_m has {g!r}; give positive metres per pixel")
+        if g <= view_gsd * 1.0001 or size / g >= float(config.query_view_max_px):
+            continue
+        out.append((g, int(max(QUERY_MIN_PX, math.ceil(size * QUERY_PAD / g - 1e-6) + 4))))
+    return out
+
+
+def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: float, config: LibraryConfig):
+    """Query-like views (see ``LibraryConfig.query_view_gsds_m``): list of (image, meta dict)."""
+    from ..render import render_mesh_view
+    from ..rng import stage_rng
+
+    lightings = view_lightings()
+    rng = stage_rng(0, "library-query-views", asset_id)
+    out = []
+    for g, side in query_view_plan(dims_m, view_gsd, config):
+        for k, bg in view_conditions(config):
+            yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
+            img = render_mesh_view(mesh, g, side, lightings[k], bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
+            out.append((img, {"lighting": k, "background": bg, "gsd_m": g, "yaw_deg": yaw}))
+    return out
+
+
+def write_query_views(path: Path, images: Sequence[np.ndarray]) -> None:
+    """All query-like views of one asset in one file (one write instead of dozens of tiny PNGs)."""
+    import io
+
+    buf = io.BytesIO()
+    np.savez_compressed(buf, *[np.asarray(i, np.uint8) for i in images])
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def read_query_views(path: Path, n: int) -> list[np.ndarray]:
+    try:
+        with np.load(path) as z:
+            imgs = [z[f"arr_{i}"] for i in range(n)]
+    except (OSError, KeyError, ValueError) as exc:
+        raise LibraryError(f"query views {path} are missing or unreadable ({exc}); rebuild the library") from exc
+    return imgs
 
 
 # Common body colours (sRGB): cars and small boats come in any of them, so the library also embeds
@@ -447,10 +504,17 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
                 write_png(root / rel, img)
                 paint_views.append({"file": rel, "lighting": 1, "background": bg, "paint": list(rgb)})
                 images.append(img)
+        qv = render_query_views(mesh, spec.id, norm.dims_m, gsd, config)
+        query_images, query_views = [q[0] for q in qv], [q[1] for q in qv]
+        qfile = f"views/{spec.id}/query_views.npz" if qv else None
+        if qfile:
+            write_query_views(root / qfile, query_images)
         rec = {
             "id": spec.id, "category": spec.category, "dims_m": [round(v, 5) for v in norm.dims_m],
             "draft_m": float(draft), "floating": bool(floating), "ue_path": spec.ue_path, "mesh": mesh_rel, "mesh_up": "y",
-            "source_mesh": str(spec.mesh), "views": views, "paint_views": paint_views, "view_gsd_m": gsd,
+            "source_mesh": str(spec.mesh), "views": views, "paint_views": paint_views,
+            "query_views": query_views, "query_views_file": qfile,
+            "view_gsd_m": gsd,
             "tags": list(spec.tags),
             "normalisation": {"up_axis": norm.up_axis, "forward_axis": norm.forward_axis, "unit": norm.unit,
                               "scale": norm.scale},
@@ -459,9 +523,11 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
         result = {"record": rec}
         if want_vectors is not None:
             emb = _make_embedder(want_vectors["name"], want_vectors.get("weights"))
-            result["vectors"] = _embed_views(emb, images, gsd, norm.dims_m[0], config)
+            result["vectors"] = _embed_views(emb, images, gsd, norm.dims_m[0], config, query_images,
+                                             [q["gsd_m"] for q in query_views])
         else:
             result["images"] = images
+            result["query_images"] = query_images
         return result
     except CoastforgeError as exc:
         return {"error": str(exc)}
@@ -469,13 +535,32 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
         return {"error": f"asset {spec.id!r}: {type(exc).__name__}: {exc}"}
 
 
-def _embed_views(emb, images: list, gsd: float, length_m: float, config: LibraryConfig) -> np.ndarray:
+def _embed_views(emb, images: list, gsd: float, length_m: float, config: LibraryConfig,
+                 query_images: Sequence = (), query_gsds: Sequence[float] = ()) -> np.ndarray:
+    """Rows of one asset: each standard view at its scale variants, then the query-like views as they are.
+    Downsampled copies as coarse as the query-like views are left out: those views stand for that scale."""
     crops, gsds = [], []
+    coarse = min(query_gsds) * 0.99 if len(query_gsds) else math.inf
     for img in images:
         for im, g in scale_variants(img, gsd, length_m, config.embed_scales):
+            if g > gsd * 1.0001 and g >= coarse:
+                continue
             crops.append(im)
             gsds.append(g)
+    crops.extend(query_images)
+    gsds.extend(float(g) for g in query_gsds)
     return np.asarray(emb.embed(crops, gsds), np.float32)
+
+
+def _stored_images(out: Path, rec: dict) -> tuple[list, list, list[float]]:
+    """(standard + paint views, query-like views, their GSDs) of a built asset, read back from disk."""
+    def rgb(v):
+        img = read_png(out / v["file"])
+        return img[:, :, :3] if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2)
+
+    qv = rec.get("query_views", [])
+    qimgs = read_query_views(out / rec["query_views_file"], len(qv)) if qv else []
+    return [rgb(v) for v in rec["views"] + rec.get("paint_views", [])], qimgs, [float(v["gsd_m"]) for v in qv]
 
 
 def _make_embedder(name: str, weights: str | None = None):
@@ -631,6 +716,14 @@ class Library:
 
     def check_embedder(self, emb) -> None:
         rec = self.doc["embedder"]
+        old_v = rec.get("settings", {}).get("version") if isinstance(rec.get("settings"), dict) else None
+        new_v = emb.settings.get("version") if isinstance(emb.settings, dict) else None
+        if emb.name == rec["name"] and old_v != new_v:
+            raise LibraryError(
+                f"library {self.root} was embedded with version {old_v} of the {emb.name!r} embedder, this is "
+                f"version {new_v}: its vectors are not comparable; rebuild it from its models (coastforge library "
+                f"build SRC --out {self.root})"
+            )
         if emb.name != rec["name"] or _canonical(emb.settings) != _canonical(rec["settings"]) or emb.dim != rec["dim"]:
             raise LibraryError(
                 f"library {self.root} was embedded with {rec['name']!r} (settings {_canonical(rec['settings'])[:120]}"
@@ -756,7 +849,9 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
             continue
         old = prev_assets.get(s.id)
         if old is not None and old.get("hashes", {}).get("content") == content and all(
-                (out / v["file"]).is_file() for v in old["views"] + old.get("paint_views", [])) and (not old.get("mesh") or (out / old["mesh"]).is_file()):
+                (out / v["file"]).is_file() for v in old["views"] + old.get("paint_views", [])) and (
+                not old.get("query_views_file") or (out / old["query_views_file"]).is_file()) and (
+                not old.get("mesh") or (out / old["mesh"]).is_file()):
             rec = {k: v for k, v in old.items() if k not in ("index_rows", "hashes")}
             records[s.id] = rec
             reused.append(s.id)
@@ -784,15 +879,16 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
         if "vectors" in res:
             vectors[s.id] = res["vectors"]
         else:
-            vectors[s.id] = _embed_views(emb, res["images"], rec["view_gsd_m"], rec["dims_m"][0], config)
+            vectors[s.id] = _embed_views(emb, res["images"], rec["view_gsd_m"], rec["dims_m"][0], config,
+                                         res.get("query_images", ()), [q["gsd_m"] for q in rec.get("query_views", [])])
         embedded.append(s.id)
     if strict and skipped:
         raise LibraryError(f"{len(skipped)} asset(s) failed (--strict): " + "; ".join(x.error for x in skipped))
     # reused assets whose embedding is stale: embed their stored views
     for aid, rec in records.items():
         if aid not in vectors:
-            imgs = [read_png(out / v["file"]) for v in rec["views"] + rec.get("paint_views", [])]
-            vectors[aid] = _embed_views(emb, imgs, rec["view_gsd_m"], rec["dims_m"][0], config)
+            imgs, qimgs, qgsds = _stored_images(out, rec)
+            vectors[aid] = _embed_views(emb, imgs, rec["view_gsd_m"], rec["dims_m"][0], config, qimgs, qgsds)
             embedded.append(aid)
     if not records:
         raise LibraryError("no asset could be built: " + "; ".join(x.error for x in skipped))
