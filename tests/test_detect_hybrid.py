@@ -135,3 +135,20 @@ def test_a_boat_the_net_also_calls_a_vehicle_needs_water_close_by():
     # a boat at the water's edge stays a boat whatever the vehicle evidence
     moored = Detection("boat", 0.42, 95.0, 100.0, 50.0, 20.0, 0.0)
     assert hyb._on_land_as_vehicles([moored], 0.1, [replace(peak, cx_px=95.0)])[0].category == "boat"
+
+
+def test_union_boats_must_be_afloat_in_the_class_map():
+    import numpy as np
+
+    from coastforge.classes import ROCKS, WATER
+    from coastforge.detection.hybrid import _afloat
+    from coastforge.types import ClassMap, Detection, Grid
+
+    grid = Grid(200, 100, 0.2)
+    ids = np.full((50, 100), WATER, np.uint8)  # the class map on a coarser grid than the image
+    ids[:, 50:] = ROCKS  # a riprap bank on the right half
+    cm = ClassMap(ids, Grid(100, 50, 0.4))
+    wet = Detection("boat", 0.35, 50.0, 50.0, 20.0, 8.0, 0.0, False, 0.5)
+    rock = Detection("boat", 0.35, 150.0, 50.0, 20.0, 8.0, 0.0, False, 0.5)
+    assert _afloat([wet, rock], cm, 200, 100) == [wet]
+    assert _afloat([wet, rock], None, 200, 100) == [wet, rock]
