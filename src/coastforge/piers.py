@@ -129,19 +129,22 @@ class LandProbe:
                 self._nearest = distance_transform_edt(solid == 0, return_indices=True)
         return self._nearest
 
-    def distance_m(self, p: np.ndarray) -> float:
-        """Distance from a point to the nearest (solid) land, in metres."""
+    def land_within(self, p: np.ndarray, radius_m: float) -> bool:
+        """Is any land pixel (decks excluded) within ``radius_m`` of ``p``? A disc lookup: no distance
+        transform of the whole image for a yes/no question about a point."""
         g = self.grid
         col, row = g.to_pixel(p[0], p[1])
-        r = int(np.clip(np.floor(row), 0, g.height_px - 1))
-        c = int(np.clip(np.floor(col), 0, g.width_px - 1))
-        return float(self.nearest()[0][r, c] * g.gsd_m)
+        dy, dx = self._disc(max(1, int(np.ceil(radius_m / g.gsd_m))))
+        r = np.floor(row).astype(int) + dy
+        c = np.floor(col).astype(int) + dx
+        inside = (r >= 0) & (r < g.height_px) & (c >= 0) & (c < g.width_px)
+        return bool(self.land[r[inside], c[inside]].any())
 
     def end_touches(self, box: "PierBox", end: np.ndarray, tol_m: float) -> bool:
         """Does the end edge of ``box`` at ``end`` come within ``tol_m`` of land (its centre or a corner)? Stricter
         than a land vote in a disc, so that a structure called grounded really touches the shore."""
         side = np.array([-box.axis[1], box.axis[0]]) * (box.width_m / 2)
-        return min(self.distance_m(q) for q in (end, end + side, end - side)) <= tol_m
+        return any(self.land_within(q, tol_m) for q in (end, end + side, end - side))
 
 
 def detections_to_boxes(dets: list[Detection], grid: Grid) -> list[PierBox]:
