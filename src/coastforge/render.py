@@ -8,13 +8,14 @@ x east = image right, y north = image up, yaw counter-clockwise from +x.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import trimesh
 
 from .classes import N_CLASSES, WATER
 from .errors import InputError
@@ -50,6 +51,9 @@ __all__ = [
 
 F32 = np.float32
 MAX_PIXELS = 6144 * 6144  # ~240 bytes per pixel at peak: larger renders must be tiled by the caller
+
+if TYPE_CHECKING:  # trimesh takes ~1 s to import: only the functions that touch meshes load it
+    import trimesh
 
 
 @dataclass(frozen=True)
@@ -454,6 +458,8 @@ def render_mesh_view(
         raise InputError(f"background = {background!r} must be 'water' or 'ground'")
     if not isinstance(size_px, (int, np.integer)) or not 8 <= size_px <= 8192:
         raise InputError(f"size_px = {size_px!r} must be an integer in 8..8192")
+    import trimesh
+
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise InputError(f"mesh {mesh!r} must be a non-empty trimesh.Trimesh")
     n = size_px

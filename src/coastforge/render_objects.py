@@ -12,6 +12,8 @@ resulting height field, swept along the sun direction with a running maximum.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import threading
 import warnings
@@ -19,13 +21,15 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import trimesh
 
 from .errors import CoastforgeWarning, InputError
 
 F32 = np.float32
 
 _BACKEND: str | None = None
+
+if TYPE_CHECKING:  # trimesh takes ~1 s to import: only the functions that touch meshes load it
+    import trimesh
 
 
 class RayBackendWarning(CoastforgeWarning):
@@ -93,6 +97,8 @@ _SPRITES_LOCK = threading.Lock()
 
 def make_sprite(mesh: trimesh.Trimesh, gs: float, cache: dict | None = None) -> Sprite:
     """Ray-cast ``mesh`` straight down on a grid of ``gs`` metres (one ray per sprite pixel)."""
+    import trimesh
+
     if not isinstance(mesh, trimesh.Trimesh):
         raise InputError(f"mesh {mesh!r} is not a trimesh.Trimesh; load assets with force='mesh'")
     # hash(mesh) follows in-place edits of the geometry (trimesh tracks its arrays), so no stale sprite
