@@ -334,7 +334,9 @@ def main(argv: list[str] | None = None) -> None:
     root = Path(__file__).resolve().parents[3]
     ap = argparse.ArgumentParser(prog="python -m coastforge.bench.detection", description=__doc__)
     ap.add_argument("--data", type=Path, default=root.parent / "shared" / "data")
-    ap.add_argument("--backend", default="classical")
+    ap.add_argument("--backend", default=None,
+                    help="detector backend (default: the preset's, as generate uses; issue figures for the "
+                         "2048² speed target use --backend classical)")
     ap.add_argument("--weights", default=None)
     ap.add_argument("--overlays", type=Path, default=None, help="write overlay PNGs into this folder")
     ap.add_argument("--synth-presets",
@@ -346,6 +348,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--set", dest="sets", action="append", default=[])
     a = ap.parse_args(argv)
     cfg = load_config(sets=a.sets).detect
+    a.backend = a.backend or cfg.backend
+    print(f"backend: {a.backend}")
     opts = {"weights": a.weights} if a.weights else {}
     if a.overlays:
         a.overlays.mkdir(parents=True, exist_ok=True)
