@@ -71,8 +71,8 @@ class PierResult:
 
 
 class LandProbe:
-    """Is a point on real land? Pier decks themselves are often classified as paving, so pixels inside
-    pier boxes do not count as land. Works on a raster mask, so a probe costs microseconds."""
+    """Where is real land? Pier decks themselves are often classified as paving, so pixels inside pier boxes
+    do not count as land. Works on a raster mask, so a probe costs microseconds."""
 
     def __init__(self, class_map: ClassMap, boxes: list[PierBox]):
         import cv2
@@ -85,7 +85,6 @@ class LandProbe:
             col, row = g.to_pixel(pts[:, 0], pts[:, 1])
             cv2.fillPoly(deck, [np.round(np.stack([col, row], 1)).astype(np.int32)], 1)
         self.land = land & (1 - deck)
-        self.counted = (1 - deck).astype(bool)  # pixels that may vote
         # disc offsets are cached per radius in pixels
         self._discs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._nearest = None  # (distance px, nearest land indices), computed on first use
@@ -96,24 +95,6 @@ class LandProbe:
             keep = xx * xx + yy * yy <= r_px * r_px
             self._discs[r_px] = (yy[keep], xx[keep])
         return self._discs[r_px]
-
-    def land_fraction(self, p: np.ndarray, radius_m: float) -> float:
-        g = self.grid
-        col, row = g.to_pixel(p[0], p[1])
-        dy, dx = self._disc(max(1, int(round(radius_m / g.gsd_m))))
-        r = np.floor(row).astype(int) + dy
-        c = np.floor(col).astype(int) + dx
-        inside = (r >= 0) & (r < g.height_px) & (c >= 0) & (c < g.width_px)
-        r, c = r[inside], c[inside]
-        if r.size == 0:
-            return 0.0
-        vote = self.counted[r, c]
-        if not vote.any():
-            return 0.0
-        return float(self.land[r, c][vote].mean())
-
-    def is_land(self, p: np.ndarray, radius_m: float) -> bool:
-        return self.land_fraction(p, radius_m) >= 0.3
 
     def nearest(self):
         """(distance to the nearest land pixel in px, its indices) per pixel: one exact distance transform of
@@ -141,8 +122,8 @@ class LandProbe:
         return bool(self.land[r[inside], c[inside]].any())
 
     def end_touches(self, box: "PierBox", end: np.ndarray, tol_m: float) -> bool:
-        """Does the end edge of ``box`` at ``end`` come within ``tol_m`` of land (its centre or a corner)? Stricter
-        than a land vote in a disc, so that a structure called grounded really touches the shore."""
+        """Does the end edge of ``box`` at ``end`` come within ``tol_m`` of land (its centre or a corner)? A
+        structure called grounded must really touch the shore, as the evaluation checks it."""
         side = np.array([-box.axis[1], box.axis[0]]) * (box.width_m / 2)
         return any(self.land_within(q, tol_m) for q in (end, end + side, end - side))
 

@@ -225,15 +225,10 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
             veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library), objects, config.vegetation,
                           seed)
         with timer.stage("write"):
-            scene = Scene(
-                name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
-                crs=grid.crs, transform=grid.transform, height=height.z_m.astype(np.float32),
-                classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
-                provenance=scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets,
-                                            objects, veg.vegetation, pier_report, decisions))
-            _write_vegetation_outputs(bg, out, veg)
-            bg.submit("scene_rasters", save_scene_rasters, scene, out)
-            bg.wait()  # re-raises the first failed job
+            scene = write_scene_files(
+                bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
+                scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
+                                 veg.vegetation, pier_report, decisions))
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)
     # what ran beside the main chain (CPU contention makes the stages above slower by about this much)
@@ -252,6 +247,22 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
         scene_path = save_scene(scene, out, rasters=False)
     return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports)
+
+
+def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
+                      class_map: ClassMap, objects, veg, provenance: dict) -> Scene:
+    """The scene of a finished chain; its vegetation masks and rasters written (the JSON comes last, from the
+    caller, once timings are known). ``transform`` is the scene rasters' (coarser than the input when a tiled
+    run downsampled them)."""
+    scene = Scene(
+        name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
+        crs=grid.crs, transform=transform, height=height.z_m.astype(np.float32),
+        classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
+        provenance=provenance)
+    _write_vegetation_outputs(bg, out, veg)
+    bg.submit("scene_rasters", save_scene_rasters, scene, out)
+    bg.wait()  # re-raises the first failed job
+    return scene
 
 
 def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: dict, objects, n_vegetation: int,

@@ -676,9 +676,9 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
     from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .pipeline import (finish_generate, _Background, _load_library, _pier_assets, _Timer, _write_vegetation_outputs,
-                           assets_by_category, fill_under_objects, place_decisions, scene_provenance)
-    from .scene import Scene, save_scene, save_scene_rasters
+    from .pipeline import (_Background, _load_library, _pier_assets, _Timer, assets_by_category, fill_under_objects,
+                           finish_generate, place_decisions, scene_provenance, write_scene_files)
+    from .scene import save_scene
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
     from .terrain import estimate_terrain
@@ -744,18 +744,13 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
             veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library), objects, config.vegetation,
                           seed)
         with timer.stage("write"):
-            scene = Scene(
-                name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
-                # the transform is the scene rasters' (coarser than the input when the image was downsampled)
-                crs=grid.crs, transform=sgrid.transform, height=height.z_m.astype(np.float32),
-                classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
-                provenance=scene_provenance(
+            # the transform is the scene rasters' (coarser than the input when the image was downsampled)
+            scene = write_scene_files(
+                bg, out, req, seed, grid, sgrid.transform, height, class_map, objects, veg,
+                scene_provenance(
                     req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
                     tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
                            "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m}))
-            _write_vegetation_outputs(bg, out, veg)
-            bg.submit("scene_rasters", save_scene_rasters, scene, out)
-            bg.wait()
     exports = {}
     if req.exports:
         with timer.stage("export"):
