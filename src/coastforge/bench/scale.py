@@ -159,21 +159,11 @@ def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: in
                       "timings_s": r.timings_s, "n_objects": r.n_objects}))
 
 
-def _tile_lines(text: str) -> list[dict]:
+def _json_lines(text: str, key: str) -> list[dict]:
+    """The child's JSON progress lines whose first key is ``key`` (``{"tile": ...}``, ``{"stage": ...}``)."""
     out = []
     for line in text.splitlines():
-        if line.startswith('{"tile"'):
-            try:
-                out.append(json.loads(line))
-            except json.JSONDecodeError:
-                pass
-    return out
-
-
-def _stage_lines(text: str) -> list[dict]:
-    out = []
-    for line in text.splitlines():
-        if line.startswith('{"stage"'):
+        if line.startswith('{"%s"' % key):
             try:
                 out.append(json.loads(line))
             except json.JSONDecodeError:
@@ -204,8 +194,8 @@ def run_size(work: Path, base: np.ndarray, size: int, tile_px: int, overlap_px: 
         timed_out = True
     peak = mon.stop()
     wall = time.perf_counter() - t0
-    stages = _stage_lines(stderr)
-    per_tile = tile_cpu(_tile_lines(stderr), stages)
+    stages = _json_lines(stderr, "stage")
+    per_tile = tile_cpu(_json_lines(stderr, "tile"), stages)
     if timed_out or p.returncode != 0:
         why = f"stopped after {timeout_s:.0f} s" if timed_out else (stderr.strip().splitlines() or ["?"])[-1]
         return {"size": size, "error": why, "wall_s": wall, "peak_tree_mb": peak / 2**20, "stages": stages,
