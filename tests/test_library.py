@@ -227,6 +227,21 @@ def test_parallel_build_matches_serial(two_assets, tmp_path):
     np.testing.assert_allclose(a.index.vectors(), b.index.vectors(), atol=1e-5)
 
 
+def test_parallel_build_from_a_background_thread_does_not_fork(two_assets, tmp_path):
+    """generate builds the starter kit in a worker thread; forking there deadlocked on a held import lock."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from coastforge.assets.library import _start_method
+
+    assert threading.active_count() >= 1
+    with ThreadPoolExecutor(1) as ex:
+        assert ex.submit(_start_method).result() == "spawn"
+        lib = ex.submit(build_library, two_assets, tmp_path / "c", config=SMALL, workers=2).result(timeout=300)
+    ref = build_library(two_assets, tmp_path / "d", config=SMALL, workers=1)
+    np.testing.assert_allclose(lib.index.vectors(), ref.index.vectors(), atol=1e-5)
+
+
 # --------------------------------------------------------------------------- bad input
 
 

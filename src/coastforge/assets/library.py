@@ -948,8 +948,19 @@ def _prune(out: Path, keep: set[str]) -> None:
                 f.unlink(missing_ok=True)
 
 
+def _start_method() -> str:
+    """``fork`` only when this process has a single thread; else ``spawn``.
+
+    Forking while another thread holds a lock (generate builds the starter kit in a background thread while
+    the main thread imports scipy) leaves the child waiting forever on that lock; spawned workers start clean.
+    """
+    import threading
+
+    return "fork" if threading.active_count() == 1 else "spawn"
+
+
 def _run_jobs(jobs: list[tuple], workers: int | None, say) -> list[dict]:
-    """Run ``_ingest_one`` over jobs, in forked worker processes when there is more than one core."""
+    """Run ``_ingest_one`` over jobs in worker processes when there is more than one core."""
     if not jobs:
         return []
     n = workers if workers is not None else min(os.cpu_count() or 1, 4)
@@ -958,7 +969,7 @@ def _run_jobs(jobs: list[tuple], workers: int | None, say) -> list[dict]:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    ctx = multiprocessing.get_context("fork")
+    ctx = multiprocessing.get_context(_start_method())
     with ProcessPoolExecutor(max_workers=min(n, len(jobs)), mp_context=ctx) as pool:
         futs = [pool.submit(_ingest_one, *j) for j in jobs]
         out = []
