@@ -87,7 +87,7 @@ class LandProbe:
         self.land = land & (1 - deck)
         # disc offsets are cached per radius in pixels
         self._discs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._nearest = None  # (distance px, nearest land indices), computed on first use
+        self._nearest = None  # (opened land, k-d tree of its edge pixels, their indices), on first use
 
     def _disc(self, r_px: int):
         if r_px not in self._discs:
@@ -96,19 +96,35 @@ class LandProbe:
             self._discs[r_px] = (yy[keep], xx[keep])
         return self._discs[r_px]
 
-    def nearest(self):
-        """(distance to the nearest land pixel in px, its indices) per pixel: one exact distance transform of
-        the land mask, opened so single stray pixels do not count; computed on first use."""
+    def nearest_land(self, p: np.ndarray, max_dist_m: float) -> np.ndarray | None:
+        """The centre of the land pixel nearest ``p`` (land opened so single stray pixels do not count), or
+        None when none lies within ``max_dist_m``. The nearest land pixel of a point in water lies on the
+        land's edge, so a k-d tree of the edge pixels answers exactly what a distance transform of the whole
+        image would, for a few queries at a fraction of its cost."""
         if self._nearest is None:
             import cv2
-            from scipy.ndimage import distance_transform_edt
+            from scipy.spatial import cKDTree
 
             solid = cv2.morphologyEx(self.land, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
-            if not solid.any():
-                self._nearest = (np.full(self.grid.shape, np.inf), None)
-            else:
-                self._nearest = distance_transform_edt(solid == 0, return_indices=True)
-        return self._nearest
+            edge = solid & (1 - cv2.erode(solid, cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))))
+            rc = np.argwhere(edge)
+            self._nearest = (solid, cKDTree(rc) if len(rc) else None, rc)
+        solid, tree, rc = self._nearest
+        if tree is None:
+            return None
+        g = self.grid
+        col, row = g.to_pixel(p[0], p[1])
+        r = int(np.clip(np.floor(row), 0, g.height_px - 1))
+        c = int(np.clip(np.floor(col), 0, g.width_px - 1))
+        if solid[r, c]:
+            hit = (r, c)
+        else:
+            d, k = tree.query((r, c), distance_upper_bound=max_dist_m / g.gsd_m + 1e-9)
+            if not np.isfinite(d):
+                return None
+            hit = rc[k]
+        x, y = g.to_scene(hit[1] + 0.5, hit[0] + 0.5)
+        return np.array([float(x), float(y)])
 
     def land_within(self, p: np.ndarray, radius_m: float) -> bool:
         """Is any land pixel (decks excluded) within ``radius_m`` of ``p``? A disc lookup: no distance
@@ -203,19 +219,8 @@ def _components(boxes: list[PierBox], tol: float = 0.4) -> list[list[int]]:
 
 
 def _nearest_land(probe: LandProbe, start: np.ndarray, max_dist: float, step: float) -> np.ndarray | None:
-    """The nearest land point from ``start`` within ``max_dist``: one exact distance transform of the land
-    mask (opened so single stray pixels do not count), with the index of the nearest land pixel."""
-    g = probe.grid
-    dist, idx = probe.nearest()
-    if idx is None:
-        return None
-    col, row = g.to_pixel(start[0], start[1])
-    r = int(np.clip(np.floor(row), 0, g.height_px - 1))
-    c = int(np.clip(np.floor(col), 0, g.width_px - 1))
-    if dist[r, c] * g.gsd_m > max_dist:
-        return None
-    x, y = g.to_scene(idx[1][r, c] + 0.5, idx[0][r, c] + 0.5)
-    return np.array([float(x), float(y)])
+    """The nearest land point from ``start`` within ``max_dist`` (see ``LandProbe.nearest_land``)."""
+    return probe.nearest_land(start, max_dist)
 
 
 def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finger_asset, config: PierConfig,
