@@ -116,15 +116,18 @@ def read_image(path: str | Path, gsd_m: float | None = None, size_m: tuple[float
         geo_gsd = None
         transform = crs = None
         if geo:
-            t = src.transform
-            if abs(t.b) > 1e-12 or abs(t.d) > 1e-12:
-                raise InputError(f"{path} has a rotated georeference; warp it north-up (gdalwarp) first")
-            geo_gsd = (abs(t.a), abs(t.e))
-            transform = tuple(float(v) for v in (t.a, t.b, t.c, t.d, t.e, t.f))
-            crs = src.crs.to_string()
+            geo_gsd, transform, crs = north_up_georef(src, path)
         gsd = resolve_gsd(w, h, gsd_m, size_m, geo_gsd, cfg.gsd_tolerance, str(path))
         rgb = _to_uint8(src.read([1, 2, 3]), path)
     return GeoImage(rgb=rgb, grid=Grid(w, h, gsd, crs, transform), path=str(path))
+
+
+def north_up_georef(src, path) -> tuple[tuple[float, float], tuple[float, ...], str]:
+    """(GSD x, y), the affine transform and the CRS of an open, projected, georeferenced raster."""
+    t = src.transform
+    if abs(t.b) > 1e-12 or abs(t.d) > 1e-12:
+        raise InputError(f"{path} has a rotated georeference; warp it north-up (gdalwarp) first")
+    return (abs(t.a), abs(t.e)), tuple(float(v) for v in (t.a, t.b, t.c, t.d, t.e, t.f)), src.crs.to_string()
 
 
 def _to_uint8(bands: np.ndarray, path: Path) -> np.ndarray:

@@ -138,12 +138,7 @@ def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[floa
                 raise InputError(f"{path} is in a geographic CRS ({src.crs.to_string()}); a large image is read in "
                                  "tiles and cannot be reprojected on the fly: warp it to its UTM zone first "
                                  "(gdalwarp -t_srs EPSG:326xx)")
-            t = src.transform
-            if abs(t.b) > 1e-12 or abs(t.d) > 1e-12:
-                raise InputError(f"{path} has a rotated georeference; warp it north-up (gdalwarp) first")
-            geo_gsd = (abs(t.a), abs(t.e))
-            transform = tuple(float(v) for v in (t.a, t.b, t.c, t.d, t.e, t.f))
-            crs = src.crs.to_string()
+            geo_gsd, transform, crs = cio.north_up_georef(src, path)
         gsd = cio.resolve_gsd(w, h, gsd_m, size_m, geo_gsd, cfg.gsd_tolerance, str(path))
         stretch = None
         if dtype != "uint8":

@@ -6,7 +6,7 @@ Field names carry their units (``gsd_m``, ``yaw_deg``, ``_px``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -98,21 +98,3 @@ class Detection:
 
     def corners_px(self) -> np.ndarray:
         return frames.box_corners_px(self.cx_px, self.cy_px, self.length_px, self.width_px, self.yaw_deg)
-
-
-@dataclass(frozen=True)
-class Placement:
-    """An asset placed in the scene frame."""
-
-    asset_id: str
-    category: str
-    x_m: float
-    y_m: float
-    z_m: float
-    yaw_deg: float
-    scale: tuple[float, float, float]
-    length_m: float
-    width_m: float
-    score: float = 1.0
-    source: str = "detection"
-    attrs: dict = field(default_factory=dict)
