@@ -98,6 +98,7 @@ class DetectConfig:
     water_min_chroma: float = 9.0  # water is tinted (blue/green); grey asphalt is not
     water_model_m: float = 8.0  # scale of the local water colour model
     near_water_m: float = 15.0  # objects further from water are land
+    boats_need_water: bool = True  # any backend: a boat further than near_water_m from water is not one
     struct_dl: float = 15.0  # structure over water: brighter than the water by this
     struct_dc: float = 10.0  # ... or of another colour by this
     boat_mask: str = "core"  # core: bright/coloured cores grown by watershed | struct: all structure

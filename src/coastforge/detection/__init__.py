@@ -57,6 +57,8 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
         # the classical backend snaps boats to their pier's direction, which on the real marina beat
         # the mirror-symmetry axis (median error 1.4° vs 2.4°): its axes are kept
         dets = refine_boxes(rgb, dets, image.grid.gsd_m, axis=name != "classical")
+    if class_map is not None and config.boats_need_water:
+        dets = boats_off_water(dets, class_map, image.grid.gsd_m, config)
     out = []
     for d in dets:
         if d.category not in DETECTION_CATEGORIES:
@@ -64,6 +66,46 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
         if d.score >= config.min_score:
             out.append(d)
     out.sort(key=lambda d: (-d.score, d.cy_px, d.cx_px))
+    return out
+
+
+def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, config: DetectConfig) -> list[Detection]:
+    """Boats and buoys whose box stays further than ``near_water_m`` from any water are not boats.
+
+    The learned detector has only seen cars beside water; in a car park far from any shore it calls some
+    cars (and car-sized planters) boats. Such a box becomes a vehicle when it has a vehicle's size and stands
+    on paving (its heading left to the matcher), and is dropped otherwise."""
+    import cv2
+
+    from ..classes import PAVED, WATER
+
+    cats = ("boat", "buoy")
+    if not any(d.category in cats for d in dets):
+        return dets
+    ids = class_map.ids
+    # distance (px) from every pixel to the nearest water pixel; no water at all: everything is far
+    dist = cv2.distanceTransform((ids != WATER).astype(np.uint8), cv2.DIST_L2, 3)
+    far_px = config.near_water_m / gsd_m
+    H, W = ids.shape
+    out = []
+    for d in dets:
+        if d.category not in cats:
+            out.append(d)
+            continue
+        poly = np.round(d.corners_px()).astype(np.int32)
+        x0, y0 = np.clip(poly.min(0), 0, [W - 1, H - 1])
+        x1, y1 = np.clip(poly.max(0) + 1, 1, [W, H])
+        box = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.fillPoly(box, [poly - [x0, y0]], 1)
+        inside = box.astype(bool)
+        if not inside.any() or dist[y0:y1, x0:x1][inside].min() <= far_px:
+            out.append(d)
+            continue
+        length_m, width_m = d.length_px * gsd_m, d.width_px * gsd_m
+        paved = np.isin(ids[y0:y1, x0:x1][inside], PAVED).mean()
+        if (d.category == "boat" and config.min_vehicle_length_m <= length_m <= config.max_vehicle_length_m
+                and 1.3 <= width_m <= 3.0 and paved >= 0.5):
+            out.append(replace(d, category="vehicle", heading_known=False, heading_confidence=0.5))
     return out
 
 
@@ -189,8 +231,10 @@ def with_mask_dropped(dets: list[Detection]) -> list[Detection]:
 def detect_file(image_path: str | Path, out: str | Path, gsd_m: float | None = None,
                 size_m: tuple[float, float] | None = None, backend: str | None = None,
                 weights: str | Path | None = None, overlay: str | Path | None = None, overwrite: bool = False,
-                config=None) -> list[Detection]:
-    """``coastforge detect``: read an image, detect, write the JSON (and the overlay PNG), atomically."""
+                config=None, segment: bool = False) -> list[Detection]:
+    """``coastforge detect``: read an image, detect, write the JSON (and the overlay PNG), atomically.
+
+    ``segment``: run the configured segmenter first and give its class map to the detector, as generate does."""
     import time
 
     from ..config import Config
@@ -207,10 +251,16 @@ def detect_file(image_path: str | Path, out: str | Path, gsd_m: float | None = N
     if weights is not None:
         opts["weights"] = weights
     name = backend or cfg.detect.backend
+    class_map = None
+    if segment:
+        from ..segmentation import segment as run_segment
+
+        class_map = run_segment(image, cfg.segment, seed=cfg.seed)
     t0 = time.perf_counter()
-    dets = detect(image, cfg.detect, backend=name, seed=cfg.seed, **opts)
+    dets = detect(image, cfg.detect, class_map=class_map, backend=name, seed=cfg.seed, **opts)
     dt = time.perf_counter() - t0
-    prov = {"backend": name, "seconds": round(dt, 3), "image": str(image_path)}
+    prov = {"backend": name, "seconds": round(dt, 3), "image": str(image_path),
+            "segmenter": cfg.segment.backend if segment else None}
     atomic_write_text(out, detections_to_json(dets, image.grid.gsd_m, (image.grid.width_px, image.grid.height_px),
                                               prov))
     if overlay is not None:

@@ -1,0 +1,43 @@
+"""Detections checked against the terrain classes: no boats far from water (any backend)."""
+
+import numpy as np
+
+from coastforge.classes import ASPHALT, GRASS, WATER
+from coastforge.config import DetectConfig
+from coastforge.detection import boats_off_water
+from coastforge.types import ClassMap, Detection, Grid
+
+GSD = 0.125
+
+
+def _map(water_cols: int) -> ClassMap:
+    ids = np.full((400, 800), ASPHALT, np.uint8)
+    ids[:, 600:] = GRASS
+    ids[:, :water_cols] = WATER
+    return ClassMap(ids, Grid(800, 400, GSD))
+
+
+def _boat(cx, length_m, width_m, category="boat"):
+    return Detection(category, 0.8, float(cx), 200.0, length_m / GSD, width_m / GSD, 90.0, heading_known=True,
+                     heading_confidence=0.9)
+
+
+def test_boats_far_from_water_become_vehicles_or_go():
+    cfg = DetectConfig()  # near_water_m = 15 m = 120 px
+    car = _boat(400, 4.6, 1.9)  # on asphalt, 300 px (37 m) from the water
+    planter = _boat(500, 10.0, 4.0)  # too wide for a vehicle
+    on_grass = _boat(700, 4.6, 1.9)  # car-sized, but on grass
+    buoy = _boat(450, 1.0, 1.0, "buoy")
+    near = _boat(150, 6.0, 2.4)  # 50 px (6 m) from the water: a boat on the slip stays a boat
+    vehicle = _boat(300, 4.5, 1.8, "vehicle")
+    out = boats_off_water([car, planter, on_grass, buoy, near, vehicle], _map(100), GSD, cfg)
+    assert [(d.category, d.cx_px) for d in out] == [("vehicle", 400.0), ("boat", 150.0), ("vehicle", 300.0)]
+    assert out[0].heading_known is False  # the matcher decides a converted car's front
+    assert out[1].heading_known is True
+
+
+def test_an_image_without_water_has_no_boats_and_a_harbour_keeps_them():
+    car = _boat(400, 4.6, 1.9)
+    assert [d.category for d in boats_off_water([car], _map(0), GSD, DetectConfig())] == ["vehicle"]
+    # water reaches to 20 px of the box's end: kept
+    assert [d.category for d in boats_off_water([car], _map(370), GSD, DetectConfig())] == ["boat"]
