@@ -161,10 +161,18 @@ def piers_found(structures: list[Truth], preds: list[Detection], min_cover: floa
 
 
 def _run(image: GeoImage, backend: str, config: DetectConfig, **opts) -> tuple[list[Detection], float]:
+    """Detections and the detector's time. ``segment_config`` in ``opts``: segment first (not timed) and
+    detect with the class map, as generate does."""
     from ..detection import detect
 
+    seg = opts.pop("segment_config", None)
+    class_map = None
+    if seg is not None:
+        from ..segmentation import segment
+
+        class_map = segment(image, seg, seed=0)
     t0 = time.perf_counter()
-    dets = detect(image, config, backend=backend, **opts)
+    dets = detect(image, config, class_map=class_map, backend=backend, **opts)
     return dets, time.perf_counter() - t0
 
 
@@ -346,11 +354,16 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--no-synth", action="store_true")
     ap.add_argument("--no-timing", action="store_true")
     ap.add_argument("--set", dest="sets", action="append", default=[])
+    ap.add_argument("--segment", action="store_true",
+                    help="segment each image first (untimed) and detect with its class map, as generate does")
     a = ap.parse_args(argv)
-    cfg = load_config(sets=a.sets).detect
+    full = load_config(sets=a.sets)
+    cfg = full.detect
     a.backend = a.backend or cfg.backend
-    print(f"backend: {a.backend}")
-    opts = {"weights": a.weights} if a.weights else {}
+    print(f"backend: {a.backend}" + (f", with the {full.segment.backend} class map" if a.segment else ""))
+    opts: dict = {"weights": a.weights} if a.weights else {}
+    if a.segment:
+        opts["segment_config"] = full.segment
     if a.overlays:
         a.overlays.mkdir(parents=True, exist_ok=True)
     scores: list[Score] = []
