@@ -15,7 +15,9 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
    by comparing its colour with the local water and local land-class colours.
 3. Land: colour/texture rules (after removing the image's colour cast) label the pixels they are sure
    of; a per-image Gaussian classifier (QDA) trained on those pixels (self-training) labels the rest,
-   so thresholds only need to be right for the clear cases of each image. Vegetation is measured
+   so thresholds only need to be right for the clear cases of each image. Footpaths and quay
+   walkways (smooth neutral strips under ~5 m wide, no darker than the asphalt, with unpaved ground
+   around them) seed as sidewalk even when no lighter than a car park. Vegetation is measured
    against the image's own pavement (``greenness``: excess green of the mean colour over ~3 m minus
    the pavement's): canopies are greener, rows of dark parked cars and shadows on pavement are not;
    asphalt is not greener; unsure rough grey ground on the bank is a revetment.
@@ -58,6 +60,13 @@ BANK_T1 = 4.0
 CAR_MIN_TEX = 6.0
 CAR_MAX_GREEN = 0.01
 CAR_BANK_M = 6.0
+# footpaths: smooth (std of L* over ~1.2 m below this) neutral strips narrower than PATH_MAX_W_M, at
+# least PATH_MIN_M2 in area and PATH_MIN_LEN_M long
+PATH_MAX_TEX = 4.0
+PATH_MAX_W_M = 5.0
+PATH_MIN_M2 = 15.0
+PATH_MIN_LEN_M = 10.0
+PATH_RING_M = 2.5  # ... and at most a quarter of the ground this far around it is paved
 
 
 def _odd(n: float) -> int:
@@ -420,7 +429,49 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
                 & (green < TREE_MIN_GREEN) & (F.bright < 0.05))
         seeds[bank & (seeds < 0)] = ROCKS
     seeds[water] = -1
+    # a footpath's pixels the rules took for asphalt (or were unsure of) are sidewalk
+    path = footpaths(F, water, seeds, chroma, a)
+    seeds[path & ((seeds < 0) | (seeds == ASPHALT))] = SIDEWALK
     return seeds
+
+
+def footpaths(F: Features, water: np.ndarray, seeds: np.ndarray, chroma: np.ndarray,
+              a: np.ndarray) -> np.ndarray:
+    """Footpaths and quay walkways: smooth, neutral strips narrower than ``PATH_MAX_W_M`` and at least
+    as light as the image's asphalt, that run between unpaved ground (lawn, bank, water) for most of
+    their outline. Concrete paths are often no lighter than a sun-bleached car park, so colour alone
+    cannot tell them apart; being a narrow strip that no pavement borders does (roads and lots are
+    wider, and the slivers an opening cuts off their edges lie along pavement)."""
+    gsd = F.gsd_m
+    asph = seeds == ASPHALT
+    if asph.sum() < 50:
+        return np.zeros(F.L.shape, bool)
+    l_ref = float(np.median(F.L[asph]))
+    # (bright concrete is sidewalk by the lightness rule already; mostly-bright strips are roofs, decks)
+    paved = (~water & (chroma < 10.0) & (a > -6.0) & (F.tex1 < PATH_MAX_TEX) & (F.L >= l_ref)
+             & (F.bright < 0.5)).astype(np.uint8)
+    r = PATH_MAX_W_M / (2.0 * gsd)
+    if r < 1.0:
+        return np.zeros(F.L.shape, bool)
+    # any pavement, light or dark, counts as "paved" along a strip's outline
+    pavement = ((seeds == ASPHALT) | (seeds == SIDEWALK) | (paved > 0)).astype(np.uint8)
+    wide = cv2.morphologyEx(pavement, cv2.MORPH_OPEN, _disk(r)).astype(bool)
+    narrow = (paved > 0) & ~wide
+    n, lab, st, _c = cv2.connectedComponentsWithStats(narrow.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return np.zeros(F.L.shape, bool)
+    # the outline is looked at PATH_RING_M out: a kerb between light and dark paving is textured, so
+    # neither side's rule claims the pixels right at it
+    rr = max(1, int(round(PATH_RING_M / gsd)))
+    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((2 * rr + 1, 2 * rr + 1), np.uint8)).astype(np.int32)
+    ring = (lab_d > 0) & (lab == 0)
+    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
+    ring_p = np.bincount(lab_d[ring & (pavement > 0)], minlength=n).astype(np.float64)
+    area_m2 = st[:, cv2.CC_STAT_AREA] * gsd * gsd
+    long_side = np.maximum(st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]) * gsd
+    ok = (area_m2 >= PATH_MIN_M2) & (long_side >= PATH_MIN_LEN_M) & (ring_p / np.maximum(ring_n, 1.0) <= 0.25)
+    ok[0] = False
+    return ok[lab]
 
 
 def parked_cars(F: Features, green: np.ndarray, seeds: np.ndarray, reach_m: float = 5.0) -> np.ndarray:

@@ -1,0 +1,68 @@
+"""Classical segmenter: footpath seeds, narrow light paving between lawns and banks (segmentation
+issue #4: concrete paths on the real marina came out as asphalt, grass or rocks)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coastforge.classes import ASPHALT, SIDEWALK
+from coastforge.segmentation.classical import compute_features, footpaths, land_seeds
+
+
+def _park(gsd: float = 0.4, seed: int = 0):
+    """A lawn with a 2.4 m light concrete path across it, a wide dark car park, a light strip along
+    the car park's edge, and a wide light plaza. Returns rgb and the masks of path, edge strip, plaza."""
+    rng = np.random.default_rng(seed)
+    h, w = 200, 240
+    rgb = np.empty((h, w, 3), np.float32)
+    rgb[:] = (85, 135, 55)  # lawn
+    path = np.zeros((h, w), bool)
+    path[60:66, 10:230] = True  # 6 px = 2.4 m wide, 88 m long
+    lot = np.zeros((h, w), bool)
+    lot[120:190, 10:110] = True
+    edge = np.zeros((h, w), bool)
+    edge[114:120, 10:110] = True  # light strip along the lot: pavement borders it
+    plaza = np.zeros((h, w), bool)
+    plaza[120:190, 140:230] = True
+    rgb[path | edge | plaza] = (122, 122, 118)  # L* ~ 51: concrete no lighter than a bleached lot
+    rgb[lot] = (88, 88, 90)
+    rgb += rng.normal(0, 1.5, (h, w, 1))
+    return np.clip(rgb, 0, 255).astype(np.uint8), path, edge, plaza
+
+
+def test_footpath_seeds_are_narrow_light_strips_between_unpaved_ground():
+    rgb, path, edge, plaza = _park()
+    F = compute_features(rgb, 0.4)
+    water = np.zeros(path.shape, bool)
+    seeds = land_seeds(F, water)
+    core = np.zeros_like(path)
+    core[61:65, 20:220] = True  # away from the blurred borders of the 1.2 m texture window
+    assert (seeds[core] == SIDEWALK).mean() > 0.8
+    # a strip along the car park and the wide plaza are not footpaths
+    fp = footpaths(F, water, seeds, np.hypot(F.a, F.b), F.a)
+    assert fp[core].mean() > 0.8
+    assert fp[edge].mean() < 0.1
+    assert fp[plaza].mean() < 0.05
+
+
+def test_footpaths_need_asphalt_to_compare_with():
+    rgb, path, _edge, _plaza = _park()
+    F = compute_features(rgb, 0.4)
+    water = np.zeros(path.shape, bool)
+    no_asphalt = np.full(path.shape, -1, np.int8)
+    assert not footpaths(F, water, no_asphalt, np.zeros(path.shape, np.float32), F.a).any()
+
+
+def test_classical_labels_a_grey_path_across_a_lawn_sidewalk():
+    from coastforge.segmentation import segment
+    from coastforge.types import GeoImage, Grid
+
+    rgb, path, _edge, _plaza = _park()
+    h, w = path.shape
+    cm = segment(GeoImage(rgb=rgb, grid=Grid(w, h, 0.4)), backend="classical")
+    core = np.zeros_like(path)
+    core[61:65, 20:220] = True
+    assert (cm.ids[core] == SIDEWALK).mean() > 0.8
+    lot = np.zeros_like(path)
+    lot[130:180, 20:100] = True
+    assert (cm.ids[lot] == ASPHALT).mean() > 0.9
