@@ -77,9 +77,12 @@ def test_integrated_contrast_is_kept_when_pixels_are_averaged():
         coarse = cv2.resize(fine, (12, 12), interpolation=cv2.INTER_AREA)
         c_fine = integrated_contrast(fine, object_mask(fine), 0.02)
         c_coarse = integrated_contrast(coarse, object_mask(coarse), 0.2)
-        np.testing.assert_allclose(c_coarse, c_fine, rtol=0.25, atol=0.01)
+        # Lab units x m^2: within 25 % per channel, or 5 % of the strongest channel (L of a green tuft on
+        # grey ground is near 0 and shifts a little as pixels mix)
+        np.testing.assert_allclose(c_coarse, c_fine, rtol=0.25, atol=0.05 * float(np.abs(c_fine).max()))
         out[name] = c_fine
-    assert np.abs(out["bright"] - out["faint"]).max() > 0.1  # m^2 of full contrast
+    diff = np.abs(out["bright"] - out["faint"]).max()
+    assert diff > 0.25 * max(np.abs(out["bright"]).max(), np.abs(out["faint"]).max())
 
 
 def test_size_code_of_a_few_pixels_is_wide():

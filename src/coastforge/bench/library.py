@@ -6,7 +6,8 @@
 
 Retrieval queries are renders of library assets at a random yaw, a random lighting (sun, water colour,
 haze), a random background (water or ground) and a random GSD in 0.05-0.3 m, cropped like the matcher
-crops detections (1.5 x the object's size); results are also split by the object's length in pixels.
+crops detections (1.5 x the object's size); results are also split by the object's length in pixels, and a
+category confusion matrix (query category x top-1 category) is reported.
 When ``coastforge.synth`` is available: crops of the objects of synthetic benchmark scenes (embedding
 top-1, where random car/boat paint defeats colour), and the matcher itself (embedding + shape fit + size,
 ``coastforge.matching``) on the scenes' truth boxes, per category and GSD. Build time: a 159-asset library
@@ -124,6 +125,16 @@ def synth_matching(lib, levels, match_config=None) -> dict:
             "note": "truth boxes; the embedding-only figure above ignores shape, paint and size priors"}
 
 
+PX_BANDS = ("<3 px", "3-5 px", "5-8 px", "8-16 px", "16-32 px", ">=32 px")  # the object's length in pixels
+
+
+def pixel_band(length_px: float) -> str:
+    for b, hi in zip(PX_BANDS, (3, 5, 8, 16, 32)):
+        if length_px < hi:
+            return b
+    return PX_BANDS[-1]
+
+
 def retrieval(lib, queries) -> dict:
     if not queries:
         return {"queries": 0}
@@ -149,12 +160,18 @@ def retrieval(lib, queries) -> dict:
     n = len(queries)
     # tiny objects (a 0.5 m grass tuft at 0.3 m/px is 2 px) carry little more than a colour: report apart
     by_px: dict = defaultdict(lambda: [0, 0, 0])
+    by_px_cat: dict = defaultdict(lambda: defaultdict(lambda: [0, 0]))
+    matrix: dict = defaultdict(lambda: defaultdict(int))
     for (img, gsd, aid, cat), h in zip(queries, hits):
         top = h[0][0] if h else None
-        band = ">=8 px long" if max(lib.asset(aid).dims_m[:2]) / gsd >= 8 else "<8 px long"
+        tcat = lib.asset(top).category if top else "none"
+        band = pixel_band(max(lib.asset(aid).dims_m[:2]) / gsd)
         by_px[band][0] += 1
         by_px[band][1] += top == aid
-        by_px[band][2] += bool(top) and lib.asset(top).category == cat
+        by_px[band][2] += tcat == cat
+        by_px_cat[cat][band][0] += 1
+        by_px_cat[cat][band][1] += tcat == cat
+        matrix[cat][tcat] += 1
     # what the matcher does: boats, vehicles and buoys, searched within the detected category
     matched = [i for i, q in enumerate(queries) if q[3] in MATCHED]
     within = 0
@@ -171,8 +188,13 @@ def retrieval(lib, queries) -> dict:
         "queries": n, "top1_asset": round(ok_asset / n, 4), "top1_category": round(ok_cat / n, 4),
         "per_category": {c: {"n": v[0], "asset": round(v[1] / v[0], 3), "category": round(v[2] / v[0], 3)}
                          for c, v in sorted(per_cat.items())},
-        "by_object_pixels": {b: {"n": v[0], "asset": round(v[1] / v[0], 3), "category": round(v[2] / v[0], 3)}
-                             for b, v in sorted(by_px.items())},
+        "by_object_pixels": {b: {"n": by_px[b][0], "asset": round(by_px[b][1] / by_px[b][0], 3),
+                                 "category": round(by_px[b][2] / by_px[b][0], 3)} for b in PX_BANDS if b in by_px},
+        # rows: the query's category, columns: the top-1's category (counts)
+        "category_confusion": {c: dict(sorted(row.items())) for c, row in sorted(matrix.items())},
+        # per category and length band: correct category / queries
+        "category_by_pixels": {c: {b: f"{v[b][1]}/{v[b][0]}" for b in PX_BANDS if b in v}
+                               for c, v in sorted(by_px_cat.items())},
         "ms_per_query": round(1000 * (t_embed + t_search) / n, 3),
         "ms_embed_per_query": round(1000 * t_embed / n, 3),
         "top_confusions": dict(sorted(confusions.items(), key=lambda t: -t[1])[:10]),
