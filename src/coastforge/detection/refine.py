@@ -14,8 +14,12 @@ Detectors place boxes to a few pixels and a few degrees (the learned net: 2-3° 
   mask's extents give a vehicle's length and centre along its axis (each end trusted only when the
   commonest background or a shadow lies beyond it) and a buoy's centre. For boats and widths the
   detector's measures were better than the silhouette's on the synthetic truth, so they are kept.
-- **Verification**: buoy boxes on sun glints / whitecaps (small, streaked, faint) and boat boxes on
-  dark water (weed, submerged rocks: darker water of the same chromaticity) are dropped.
+- **Small boats** (under ``SMALL_BOAT_MAX_M``): the detector boxes them short; the box is lengthened
+  to where the hull's contrast along its axis fades into the water (``boat_ends``).
+- **Verification**: buoy boxes on sun glints / whitecaps (small, streaked, faint; or the water's own
+  colour brightened with no shadow beside it, ``is_glint``) and boat boxes on dark water (weed,
+  submerged rocks: darker water of the same chromaticity) or on mostly water (broken wakes, weed
+  patches with water between them) are dropped.
 
 The front (heading and its confidence) stays what the detector said; a refinement that fails a
 plausibility check leaves the detector's value.
@@ -34,9 +38,17 @@ REFINED = ("boat", "vehicle", "buoy")
 _MIN_UP_PX = 24.0  # silhouette crops are upsampled until the box is this many samples wide
 SYM_PX, SYM_HV = 48.0, 0.45  # samples across the box; mirror rows each side (x width)
 BUOY_MAX_ASPECT, BUOY_MIN_AREA_M2, BUOY_MIN_PEAK = 1.4, 0.25, 24.0  # see ``is_buoy``
+# sun glints (``is_glint``): the ring (m from the centre) where a buoy darkens the water, how dark its
+# 10th percentile must get (Lab L) and how close to the water's chromaticity a glint's colour stays
+GLINT_RING_M, GLINT_MAX_SHADOW, GLINT_MAX_TINT = (0.6, 0.95), -1.4, 0.1
 DARK_WATER_SHADOW, DARK_WATER_CONTRAST = 0.8, 0.8  # see ``is_dark_water``
+# ... and a box whose core is more than this share water-coloured (within this Lab distance)
+CORE_WATER_MAX, CORE_WATER_DE = 0.5, 8.0
 # ... dark hulls: a box at least this long (m) must be darker water on nearly all its core to go
 DARK_HULL_MIN_M, DARK_HULL_MIN_PX, DARK_HULL_SHADOW = 7.5, 20.0, 0.95  # ... seen this many pixels long
+# small boats (``_small_boat_ends``): up to this long (m); their ends where the hull's contrast has
+# fallen this fraction of the way to the water's; at most this much longer than the detector's box
+SMALL_BOAT_MAX_M, SMALL_BOAT_EDGE, SMALL_BOAT_MAX_GROW = 4.5, 0.2, 1.4
 SILHOUETTE_MIN_PX = 30.0  # vehicles' lengths are taken from their silhouette from this size up
 SYM_MAX_DEG = 12.0  # the axis is searched this far either side of the detector's
 # a turn of more than 5° needs a clear optimum (mean / best mirror cost): on the synthetic levels every
@@ -269,7 +281,8 @@ def core_evidence(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
     """How much the middle of a box looks like an object rather than background: ``contrast`` (the
     core's median colour distance to the nearest background mode over the background's own spread)
     and ``shadow`` (the fraction of the core that is darker than the background with its
-    chromaticity: a dark patch of water, weed, a shadow)."""
+    chromaticity: a dark patch of water, weed, a shadow) and ``water`` (the fraction of the core within
+    ``CORE_WATER_DE`` of the median colour around the box)."""
     L, W = det.length_px, det.width_px
     scale = max(1.0, min(4.0, 12.0 / max(W, 1.0)))
     pad = max(3.0, 0.6 / gsd_m)
@@ -283,7 +296,7 @@ def core_evidence(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
     core = (U <= 0.35 * L) & (V <= 0.3 * W)
     found = background_modes(crop[ring], crop[core], max_in_core=1.01)
     if not found or not core.any():
-        return {"contrast": 0.0, "shadow": 1.0}
+        return {"contrast": 0.0, "shadow": 1.0, "water": 1.0}
     modes = [m for m, _ in found]
     dist = np.stack([np.sqrt(((crop - m) ** 2).sum(-1)) for m in modes]).min(0)
     spread = max(2.0, float(np.percentile(dist[ring], 50)))
@@ -292,7 +305,10 @@ def core_evidence(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
         ratio = np.clip((crop[..., 0] + 16.0) / (m[0] + 16.0), 0.0, 1.0)  # Lab: f(kY) = k^(1/3) f(Y)
         ab_dev = np.hypot(crop[..., 1] - m[1] * ratio, crop[..., 2] - m[2] * ratio)
         shadow |= (crop[..., 0] < m[0] - 3.0 * spread) & (ab_dev < max(6.0, 1.5 * spread))
-    return {"contrast": float(np.median(dist[core])) / spread, "shadow": float(shadow[core].mean())}
+    # the share of the core coloured like the water around the box (its ring's median colour)
+    water = float((np.sqrt(((crop[core] - np.median(crop[ring], 0)) ** 2).sum(-1)) < CORE_WATER_DE).mean())
+    return {"contrast": float(np.median(dist[core])) / spread, "shadow": float(shadow[core].mean()),
+            "water": water}
 
 
 def _shift(det: Detection, du: float, dv: float, **changes) -> Detection:
@@ -330,7 +346,7 @@ def refine_box(rgb: np.ndarray, det: Detection, gsd_m: float, min_fill: float = 
     if det.category == "vehicle" and cur.length_px < SILHOUETTE_MIN_PX:
         return cur
     if det.category == "boat":
-        return cur
+        return _small_boat_ends(rgb, cur, gsd_m, note)
     got = silhouette(rgb, cur, gsd_m, trace)
     if isinstance(got, str):
         note(got)
@@ -376,10 +392,72 @@ def refine_box(rgb: np.ndarray, det: Detection, gsd_m: float, min_fill: float = 
     return _shift(cur, du, 0.0, length_px=float(length), mask=None, mask_origin_px=None)
 
 
+def boat_ends(rgb: np.ndarray, det: Detection, frac: float = SMALL_BOAT_EDGE) -> tuple[float, float] | None:
+    """Where a boat's ends lie along its box's axis (pixels from the box centre, back and front), or
+    None: the median colour distance to the commonest background colour (the water) across the middle
+    of the hull, followed outward from its highest value in each half of the box to where it falls
+    ``frac`` of the way back to the water's own texture, to a sub-sample."""
+    L, W = det.length_px, det.width_px
+    s = 4.0  # samples per pixel: sub-pixel ends
+    half_u, half_v = 0.75 * L + 3, 0.9 * W + 3
+    win = _lab_window(rgb, det.cx_px, det.cy_px, math.hypot(half_u, half_v) + 3)
+    crop = _crop(win, det.cx_px, det.cy_px, det.yaw_deg, half_u, half_v, s)
+    nv, nu = crop.shape[:2]
+    u = (np.arange(nu) - (nu - 1) / 2.0) / s
+    V = np.abs((np.arange(nv) - (nv - 1) / 2.0) / s)[:, None]
+    ring = (np.abs(u)[None, :] > 0.625 * L + 1) | (V > 0.65 * W + 1)
+    core = (np.abs(u)[None, :] <= 0.3 * L) & (V <= 0.3 * W)
+    found = background_modes(crop[ring], crop[core])
+    band = V[:, 0] <= 0.3 * W
+    if not found or not band.any():
+        return None
+    dist = np.sqrt(((crop - found[0][0]) ** 2).sum(-1))
+    prof = np.median(dist[band], 0)
+    water = float(np.median(dist[ring]))
+    ends = []
+    for sgn in (-1, 1):
+        half = (sgn * u >= 0.1 * L) & (sgn * u <= 0.5 * L)
+        if not half.any():
+            return None
+        idx = np.nonzero(half)[0]
+        k = int(idx[np.argmax(prof[half])])
+        thr = water + frac * (float(prof[k]) - water)
+        while 0 <= k + sgn < nu and prof[k + sgn] >= thr:
+            k += sgn
+        if not 0 <= k + sgn < nu:
+            return None  # no water beyond this end within the crop
+        a, b = float(prof[k]), float(prof[k + sgn])
+        ends.append(float(u[k]) + sgn * (a - thr) / max(a - b, 1e-6) / s)
+    return ends[0], ends[1]
+
+
+def _small_boat_ends(rgb: np.ndarray, det: Detection, gsd_m: float, note) -> Detection:
+    """A small boat's box lengthened to its hull's ends (``boat_ends``). The detector boxes dinghies
+    and other boats under ``SMALL_BOAT_MAX_M`` short (synthetic levels, seeds 0 and 1: by 16 % at
+    0.2 m/px, their bow and stern blur into the water); their visible ends only ever lengthen the box
+    (up to ``SMALL_BOAT_MAX_GROW``), as for larger boats the detector's length was the better one."""
+    L0 = float(det.length_px)
+    if L0 * gsd_m > SMALL_BOAT_MAX_M or L0 < 4:
+        return det
+    got = boat_ends(rgb, det)
+    if got is None:
+        note("no boat ends")
+        return det
+    length = got[1] - got[0]
+    if not L0 < length <= SMALL_BOAT_MAX_GROW * L0:
+        note(f"ends {length:.1f} vs {L0:.1f}")
+        return det
+    note("lengthened")
+    return _shift(det, (got[0] + got[1]) / 2.0, 0.0, length_px=float(length), mask=None, mask_origin_px=None)
+
+
 def buoy_features(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, float]:
     """Shape and contrast of the blob at a buoy box, measured on a 4 m square resampled to 5 cm:
     ``peak`` (Lab distance from the water around, 95th percentile within 0.6 m), ``area`` (m², of the
-    blob brighter than half the peak within 1 m) and ``aspect`` (long/short axis from its moments)."""
+    blob brighter than half the peak within 1 m), ``aspect`` (long/short axis from its moments), and
+    for ``is_glint``: ``ring_p10`` and ``ring_mean`` (10th percentile and mean of the lightness minus
+    the water's in the annulus ``GLINT_RING_M`` around the blob) and ``tint`` (how far the blob's
+    chromaticity is from the water's, over the water's chroma)."""
     sample = 0.05
     win = _lab_window(rgb, det.cx_px, det.cy_px, 2.5 / gsd_m + 3)
     crop = _crop(win, det.cx_px, det.cy_px, 0.0, 2.0 / gsd_m, 2.0 / gsd_m, gsd_m / sample)
@@ -395,15 +473,39 @@ def buoy_features(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
     if len(xs) > 3:
         ev = np.linalg.eigvalsh(np.cov(np.stack([xs, ys]).astype(float)))
         aspect = float(math.sqrt(ev[1] / max(ev[0], 1e-6)))
-    return {"peak": peak, "area": float(blob.sum() * sample * sample), "aspect": aspect}
+    dl = crop[..., 0] - bg[0]
+    r0, r1 = GLINT_RING_M
+    ring = (rr >= r0) & (rr < r1)
+    # the blob's colour: the core weighted by how much brighter than the water it is
+    w = np.clip(dl, 0.0, None) * (rr < 0.3)
+    ab = (crop[..., 1:] * w[..., None]).sum((0, 1)) / w.sum() if w.sum() > 1e-6 else bg[1:]
+    chroma = float(math.hypot(bg[1], bg[2]))
+    tint = (float(math.hypot(ab[0] - bg[1], ab[1] - bg[2])) - 1.5) / max(chroma, 1e-6)
+    return {"peak": peak, "area": float(blob.sum() * sample * sample), "aspect": aspect,
+            "ring_p10": float(np.percentile(dl[ring], 10)) if ring.any() else 0.0,
+            "ring_mean": float(dl[ring].mean()) if ring.any() else 0.0, "tint": tint}
+
+
+def is_glint(f: dict[str, float]) -> bool:
+    """``buoy_features`` of a sun glint: a glint is the water's own colour made brighter, and the
+    ripples around it catch some of the sun too, so the water around it is, if anything, brighter; a
+    floating buoy stands out in its own colour and darkens the water beside it (its shadow, its
+    waterline). On the synthetic levels (seeds 0 and 1) every glint left by the shape checks had a
+    10th percentile of the ring at -1.15 or more, a brighter ring on average and a tint <= 0.06; the
+    true buoys' ring reached -1.61 or less at both resolutions (so each test alone separates them;
+    a glint must pass all three)."""
+    return f["ring_p10"] > GLINT_MAX_SHADOW and f["ring_mean"] > 0.0 and f["tint"] <= GLINT_MAX_TINT
 
 
 def is_buoy(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
     """A buoy is a bright, round float at least ~0.5 m across. Sun glints and whitecaps, which the
     learned detector takes for buoys, are small, streaked along the wind and fainter (on the
-    synthetic levels: 0.1 m/px all 25 buoys kept, 64 of 65 glints dropped; 0.2 m/px 25/26 and 21/27)."""
+    synthetic levels: 0.1 m/px all 25 buoys kept, 64 of 65 glints dropped; 0.2 m/px 25/26 and 21/27);
+    the glints left are told apart by their surroundings and colour (``is_glint``: 0.2 m/px, seeds 0
+    and 1, the last 6 of 6 dropped, no buoy)."""
     f = buoy_features(rgb, det, gsd_m)
-    return f["aspect"] <= BUOY_MAX_ASPECT and f["area"] >= BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_MIN_PEAK
+    return (f["aspect"] <= BUOY_MAX_ASPECT and f["area"] >= BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_MIN_PEAK
+            and not is_glint(f))
 
 
 def is_dark_water(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
@@ -423,6 +525,11 @@ def is_dark_water(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
         return False
     e = core_evidence(rgb, det, gsd_m)
     if e["contrast"] < DARK_WATER_CONTRAST:
+        return True
+    if e["water"] > CORE_WATER_MAX:
+        # a hull or deck covers the middle of its box; weed patches seen with gaps of water between
+        # them, and foam trails, leave at least half of it the water's colour (synthetic seeds 0-2:
+        # true boats at most 0.47, the kayaks whose boxes are wider than they are)
         return True
     # dark patches on the synthetic levels are small (2-7 m, weed and rocks); a yacht-sized dark box
     # with contrast is a dark hull (real marina: 2 of 2 such true boats, 0 false at 7.5 m and up)
