@@ -57,6 +57,11 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
         # the classical backend snaps boats to their pier's direction, which on the real marina beat
         # the mirror-symmetry axis (median error 1.4° vs 2.4°): its axes are kept
         dets = refine_boxes(rgb, dets, image.grid.gsd_m, axis=name != "classical")
+        if name != "classical":  # the classical backend already used the glass cue (heading.resolve_heading)
+            from .heading import vehicle_fronts
+
+            # vehicles: the backend's front (the learned net's) is a prior, the windscreen cue is added
+            dets = vehicle_fronts(rgb, dets)
     if class_map is not None and config.boats_need_water:
         dets = boats_off_water(dets, class_map, image.grid.gsd_m, config)
     out = []

@@ -3,8 +3,11 @@
 Cues, each giving a sign (+1: the front is along ``yaw_deg``, -1: opposite) and a confidence in [0.5, 1]:
 - boats: the silhouette's width profile along the long axis. Bows taper to a point, sterns are square
   (transom), so the end whose outer fifth is narrower is the bow.
-- vehicles: the cabin (roof + glass) sits behind the centre because the bonnet is longer than the boot,
-  and the windscreen is a dark band in front of the roof.
+- vehicles (``glass_evidence``): seen from above, the windscreen is a long dark band in front of the
+  (painted) roof, the rear window a short one or none (hatchbacks, SUVs, vans); so along the middle of
+  the car more of the dark glass lies in the front half. An open pickup bed is dark too, but long and at
+  the rear end: a dark run that long reaching an end of the body is left out. The detector's own belief
+  (``heading_confidence``) is a prior and both are added as log-odds (``vehicle_fronts``).
 - context: boats along one pier are usually moored the same way (all bow-in or all stern-in), so an
   unsure boat takes the majority of its confident neighbours at the same pier.
 When the cues are weak ``heading_known`` stays False and the 180° ambiguity stays explicit.
@@ -71,35 +74,99 @@ def silhouette_sign(mask: np.ndarray, origin: tuple[int, int], det: Detection) -
     return sign, conf
 
 
+# glass cue (``glass_evidence``): chosen on the synthetic levels of seed 0 (seed 1 held out)
+GLASS_NU, GLASS_NV = 48, 16  # samples along / across the box
+GLASS_CORE_V = 0.3  # the middle strip (|v| < 0.3 W): no side windows, no cast shadow beside the car
+GLASS_WIN_U = 0.35  # glass counted within |u| < 0.35 L: hood and boot tips and the box ends stay out
+GLASS_PAINT_PCT = 75  # the paint's lightness: this percentile of the strip (glass is the minority)
+GLASS_RUN_REL = 0.35  # a dark run: samples darker than the paint by this fraction of the darkest one
+GLASS_BED_LEN, GLASS_BED_END = 0.2, 0.42  # a run this long (x L) reaching this far out is a bed, not glass
+GLASS_WEIGHT = 4.0  # log-odds at full asymmetry (all dark glass in one half) ...
+GLASS_FULL_DARK = 6.0  # ... once the glass is this much darker than the paint (Lab L, mean over the window)
+GLASS_MIN_PX = 12.0  # shorter boxes show no windscreen
+
+
+def _aligned_lab(rgb: np.ndarray, det: Detection, nu: int, nv: int) -> np.ndarray:
+    """Lab (float, L 0-100) samples of the box on a (nv, nu) grid, u (columns) toward the front."""
+    import cv2
+
+    f, lft = _axes(det)
+    su, sv = det.length_px / nu, det.width_px / nv
+    a = np.stack([f * su, -lft * sv], 1)  # d(col, row) / d(j, i)
+    o = np.array([det.cx_px - 0.5, det.cy_px - 0.5]) - a @ np.array([(nu - 1) / 2.0, (nv - 1) / 2.0])
+    m = np.hstack([a, o[:, None]])
+    crop = cv2.warpAffine(np.ascontiguousarray(rgb), m, (nu, nv),
+                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT)
+    return cv2.cvtColor(crop.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
+
+
+def glass_evidence(rgb: np.ndarray, det: Detection) -> float:
+    """Vehicles: log-odds that the front is along ``yaw_deg`` (> 0) rather than opposite, from where the
+    dark glass lies along the middle of the box (see the module doc); 0 when there is no such contrast
+    (dark paint, a box of a few pixels)."""
+    if det.length_px < GLASS_MIN_PX or det.width_px < 3:
+        return 0.0
+    nu, nv = GLASS_NU, GLASS_NV
+    lab = _aligned_lab(rgb, det, nu, nv)
+    u = (np.arange(nu) + 0.5) / nu - 0.5  # in box lengths, back to front
+    v = (np.arange(nv) + 0.5) / nv - 0.5
+    strip = lab[np.abs(v) < GLASS_CORE_V, :, 0]
+    body = np.abs(u) < 0.45
+    paint = float(np.percentile(strip[:, body], GLASS_PAINT_PCT))
+    dark = np.clip(paint - strip.mean(0), 0.0, None) * body
+    if dark.max() <= 0:
+        return 0.0
+    on = dark > GLASS_RUN_REL * dark.max()
+    k = 0
+    while k < nu:  # long dark runs at an end of the body: open beds / cargo floors
+        if not on[k]:
+            k += 1
+            continue
+        e = k
+        while e + 1 < nu and on[e + 1]:
+            e += 1
+        if u[e] - u[k] >= GLASS_BED_LEN and (u[k] < -GLASS_BED_END or u[e] > GLASS_BED_END):
+            dark[k:e + 1] = 0.0
+        k = e + 1
+    dark = dark * on  # only clear glass counts: faint shading (roof vents, panel gradients) does not
+    win = np.abs(u) < GLASS_WIN_U
+    front, back = float(dark[win & (u > 0)].sum()), float(dark[win & (u < 0)].sum())
+    asym = (front - back) / (front + back + 1e-6)
+    strength = min(1.0, (front + back) / win.sum() / GLASS_FULL_DARK)
+    return GLASS_WEIGHT * asym * strength
+
+
 def cabin_sign(rgb: np.ndarray, det: Detection) -> tuple[int, float]:
-    """Vehicles: (+1 | -1, confidence) from the position of the dark glass/cabin along the long axis."""
-    if det.length_px < 8:
-        return 1, 0.5
-    h, w = rgb.shape[:2]
-    c = det.corners_px()
-    c0, r0 = np.floor(c.min(0)).astype(int)
-    c1, r1 = np.ceil(c.max(0)).astype(int)
-    c0, r0, c1, r1 = max(c0, 0), max(r0, 0), min(c1, w), min(r1, h)
-    if c1 - c0 < 3 or r1 - r0 < 3:
-        return 1, 0.5
-    patch = rgb[r0:r1, c0:c1].astype(np.float32).mean(2)
-    rr, cc = np.mgrid[r0:r1, c0:c1]
-    u, v = box_coords(det, cc, rr)
-    inside = (np.abs(u) < det.length_px * 0.45) & (np.abs(v) < det.width_px * 0.3)
-    if inside.sum() < 10:
-        return 1, 0.5
-    val = patch[inside]
-    uu = u[inside] / (det.length_px / 2.0)
-    thr = np.percentile(val, 35)
-    dark = val <= thr
-    if dark.sum() < 3 or (~dark).sum() < 3:
-        return 1, 0.5
-    # glass/roof centroid lies behind the centre; the front windscreen is the darkest band
-    shift = float(uu[dark].mean() - uu.mean())
-    spread = float(np.ptp(val)) / 255.0
-    sign = -1 if shift > 0 else 1
-    conf = 0.5 + 0.35 * float(np.tanh(abs(shift) / 0.12)) * min(1.0, spread / 0.25)
-    return sign, conf
+    """Vehicles: (+1 | -1, confidence) from the glass cue (``glass_evidence``)."""
+    lo = glass_evidence(rgb, det)
+    return (1 if lo >= 0 else -1), float(1.0 / (1.0 + np.exp(-abs(lo))))
+
+
+def _logit(conf: float) -> float:
+    c = min(max(float(conf), 0.5), 0.999)
+    return float(np.log(c / (1.0 - c)))
+
+
+def vehicle_fronts(rgb: np.ndarray, dets: list[Detection]) -> list[Detection]:
+    """Vehicles' fronts from a detector that gives its own heading (the learned network): its
+    confidence is a prior, the glass cue is added in log-odds; other categories are returned unchanged.
+    On the synthetic levels (seed 0 tuned, seed 1 held out) this took the learned detector's vehicle
+    heading accuracy from 0.90 / 0.90 to 0.94 / 0.94 (seed 0, 0.1 / 0.2 m/px) and from 0.79 / 0.78 to
+    0.88 / 0.87 (seed 1); most errors left are dark cars, whose glass is hardly darker than the paint.
+    A vote of neighbouring cars (same row, same kerb) did not help there: lots mix nose-in and
+    nose-out parking."""
+    out = []
+    for d in dets:
+        if d.category != "vehicle":
+            out.append(d)
+            continue
+        ev = glass_evidence(rgb, d)
+        if ev == 0.0:  # nothing to add: the detector's front and confidence stay as they are
+            out.append(d)
+            continue
+        lo = _logit(d.heading_confidence) + ev
+        out.append(apply_sign(d, 1 if lo >= 0 else -1, float(1.0 / (1.0 + np.exp(-abs(lo))))))
+    return out
 
 
 def apply_sign(det: Detection, sign: int, conf: float) -> Detection:

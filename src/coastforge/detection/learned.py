@@ -189,9 +189,8 @@ class LearnedDetector:
                                   heading_confidence=float(conf) if cat != "buoy" else 0.0))
         # tiles overlap: the same object seen twice, or cut by a tile edge, is merged; one object
         # is never two categories either
-        # the network's front is kept even when weakly confident: on the synthetic validation levels
-        # its sign beat the silhouette/cabin cues of ``detection.heading`` (which were worse than a
-        # coin flip on these vehicles), so those cues are not mixed in
+        # the network's front is kept even when weakly confident; for vehicles ``detect`` then adds the
+        # windscreen cue of ``detection.heading.vehicle_fronts`` to it as log-odds (after refinement)
         strong = [d for d in dets if self.is_confident(d)]
         weak = [d for d in dets if not self.is_confident(d)]  # evidence only: not de-duplicated (speed)
         return rotated_nms(strong, cfg.nms_iou, class_aware=False, ioa_threshold=0.8) + weak
