@@ -75,7 +75,8 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
 
 
 def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, config: DetectConfig) -> list[Detection]:
-    """Boats and buoys whose box stays further than ``near_water_m`` from any water are not boats.
+    """Boats and buoys whose box stays further than ``near_water_m`` from any water are not boats (when the
+    class map has water at all: at least ``min_water_area_m2``).
 
     The learned detector has only seen cars beside water; in a car park far from any shore it calls some
     cars (and car-sized planters) boats. Such a box becomes a vehicle when it has a vehicle's size and stands
@@ -88,7 +89,11 @@ def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, co
     if not any(d.category in cats for d in dets):
         return dets
     ids = class_map.ids
-    # distance (px) from every pixel to the nearest water pixel; no water at all: everything is far
+    # a class map with (almost) no water says more about the segmenter than about the boats: a sea
+    # painted as grass (seen on a synthetic beach) would otherwise cost every boat
+    if np.count_nonzero(ids == WATER) * gsd_m * gsd_m < config.min_water_area_m2:
+        return dets
+    # distance (px) from every pixel to the nearest water pixel
     dist = cv2.distanceTransform((ids != WATER).astype(np.uint8), cv2.DIST_L2, 3)
     far_px = config.near_water_m / gsd_m
     H, W = ids.shape
