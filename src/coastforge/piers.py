@@ -218,11 +218,6 @@ def _components(boxes: list[PierBox], tol: float = 0.4) -> list[list[int]]:
     return [sorted(c) for c in sorted(comps.values(), key=min)]
 
 
-def _nearest_land(probe: LandProbe, start: np.ndarray, max_dist: float, step: float) -> np.ndarray | None:
-    """The nearest land point from ``start`` within ``max_dist`` (see ``LandProbe.nearest_land``)."""
-    return probe.nearest_land(start, max_dist)
-
-
 def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finger_asset, config: PierConfig,
                 water_level_m: float = 0.0) -> PierResult:
     """Chain library pier segments along detected walkways and fingers, connected to land."""
@@ -237,7 +232,7 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     comps = _components(boxes)
     # a structure that still does not reach land gets a connecting walkway to whatever is nearer: land, or a
     # structure that reaches land (detectors often break one long walkway into pieces)
-    _connect_floating(boxes, ext, comps, probe, config, step)
+    _connect_floating(boxes, ext, comps, probe, config)
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
     on_land = tuple(_reaches_land(boxes, comp, probe) for comp in comps)
@@ -260,7 +255,7 @@ def _reaches_land(boxes: list[PierBox], comp: list[int], probe: LandProbe) -> bo
 
 
 def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[int]], probe: LandProbe,
-                      config: PierConfig, step: float) -> None:
+                      config: PierConfig) -> None:
     from shapely.ops import nearest_points, unary_union
 
     limit = 8 * config.max_gap_m
@@ -273,7 +268,7 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
         w = max(1.5, max(boxes[i].width_m for i in comp))
         for i in comp:
             for end in boxes[i].ends():
-                q = _nearest_land(probe, end, limit, step)
+                q = probe.nearest_land(end, limit)
                 if q is not None:
                     d = float(np.linalg.norm(q - end))
                     if id(comp) not in to_land or d < to_land[id(comp)][0]:

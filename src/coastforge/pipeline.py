@@ -111,14 +111,6 @@ def _load_library(path: str | None):
     return lib_mod.Library.load(path) if path else lib_mod.default_library()
 
 
-def _warm_report_imports() -> None:
-    try:
-        from .report import warm_imports
-    except ImportError:  # the report's extra is not installed: finish_generate skips the report
-        return
-    warm_imports()
-
-
 def _pier_assets(library):
     piers = [a for a in library.assets if a.category == "pier"]
     if not piers:
@@ -205,8 +197,6 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     # output; every side raster is written as soon as its stage is done.
     with _Background() as bg:
         bg.submit("library", _load_library, req.library)
-        if req.report:
-            bg.submit("report_imports", _warm_report_imports)
         with timer.stage("segment"):
             class_map = segment(image, config.segment, seed=seed)
         with timer.stage("detect"):

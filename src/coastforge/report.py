@@ -88,15 +88,6 @@ def _plt():
     return plt
 
 
-def warm_imports() -> None:
-    """Import what the report needs (matplotlib with Agg, trimesh for the top-down render) ahead of time:
-    generate calls this in a background thread while its main chain computes, so the ~2 CPU-s of imports
-    overlap with work instead of adding to the wall time of the report at the end."""
-    _plt()
-    import trimesh  # noqa: F401
-    from matplotlib.colors import LightSource  # noqa: F401
-
-
 def _fig_uri(fig) -> str:
     plt = _plt()
     buf = io.BytesIO()

@@ -74,6 +74,22 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
     return out
 
 
+def values_under_box(raster: np.ndarray, det: Detection, scale: float = 1.0) -> np.ndarray:
+    """The values of ``raster`` under the oriented box of ``det`` (its pixel corners times ``scale``, for a
+    raster on a coarser grid), flat; empty when the box lies outside the raster."""
+    import cv2
+
+    h, w = raster.shape[:2]
+    pts = np.round(det.corners_px() * scale - 0.5).astype(np.int32)
+    c0, r0 = np.clip(pts.min(0) - 1, 0, [w, h])
+    c1, r1 = np.clip(pts.max(0) + 2, 0, [w, h])
+    if c1 <= c0 or r1 <= r0:
+        return np.empty(0, raster.dtype)
+    inside = np.zeros((r1 - r0, c1 - c0), np.uint8)
+    cv2.fillPoly(inside, [pts - [c0, r0]], 1)
+    return raster[r0:r1, c0:c1][inside > 0]
+
+
 def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, config: DetectConfig) -> list[Detection]:
     """Boats and buoys whose box stays further than ``near_water_m`` from any water are not boats (when the
     class map has water at all: at least ``min_water_area_m2``).
@@ -96,23 +112,17 @@ def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, co
     # distance (px) from every pixel to the nearest water pixel
     dist = cv2.distanceTransform((ids != WATER).astype(np.uint8), cv2.DIST_L2, 3)
     far_px = config.near_water_m / gsd_m
-    H, W = ids.shape
     out = []
     for d in dets:
         if d.category not in cats:
             out.append(d)
             continue
-        poly = np.round(d.corners_px()).astype(np.int32)
-        x0, y0 = np.clip(poly.min(0), 0, [W - 1, H - 1])
-        x1, y1 = np.clip(poly.max(0) + 1, 1, [W, H])
-        box = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        cv2.fillPoly(box, [poly - [x0, y0]], 1)
-        inside = box.astype(bool)
-        if not inside.any() or dist[y0:y1, x0:x1][inside].min() <= far_px:
+        near = values_under_box(dist, d)
+        if near.size == 0 or near.min() <= far_px:
             out.append(d)
             continue
         length_m, width_m = d.length_px * gsd_m, d.width_px * gsd_m
-        paved = np.isin(ids[y0:y1, x0:x1][inside], PAVED).mean()
+        paved = np.isin(values_under_box(ids, d), PAVED).mean()
         if (d.category == "boat" and config.min_vehicle_length_m <= length_m <= config.max_vehicle_length_m
                 and 1.3 <= width_m <= 3.0 and paved >= 0.5):
             out.append(replace(d, category="vehicle", heading_known=False, heading_confidence=0.5))

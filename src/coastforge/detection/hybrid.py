@@ -32,6 +32,7 @@ import numpy as np
 from ..classes import WATER
 from ..config import DetectConfig
 from ..types import ClassMap, Detection, GeoImage
+from . import values_under_box
 
 PIERS = ("pier_walkway", "pier_finger")
 UNION_IOA = 0.3
@@ -110,20 +111,11 @@ class HybridDetector:
         dist = cv2.distanceTransform((~water).astype(np.uint8), cv2.DIST_L2, 3) * (gsd_m / s)
         vehicles = [e for e in evidence if e.category == "vehicle"]
         out = []
-        h, w = dist.shape
         for d in dets:
             if d.category != "boat":
                 out.append(d)
                 continue
-            pts = np.round(d.corners_px() * s - 0.5).astype(np.int32)
-            c0, r0 = np.clip(pts.min(0) - 1, 0, [w, h])
-            c1, r1 = np.clip(pts.max(0) + 2, 0, [w, h])
-            if c1 <= c0 or r1 <= r0:
-                out.append(d)
-                continue
-            sub = np.zeros((r1 - r0, c1 - c0), np.uint8)
-            cv2.fillPoly(sub, [pts - [c0, r0]], 1)
-            inside = dist[r0:r1, c0:c1][sub > 0]
+            inside = values_under_box(dist, d, s)
             ambiguous = any(v.score >= AMBIGUOUS_RATIO * d.score for v in _supported_by([d], vehicles))
             reach = AMBIGUOUS_REACH_M if ambiguous else LAND_REACH_M
             if inside.size == 0 or float(inside.min()) <= reach:
