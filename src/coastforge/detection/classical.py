@@ -51,12 +51,13 @@ def _smooth_masked(values: np.ndarray, weight: np.ndarray, sigma_px: float) -> n
     sh, sw = max(1, h // f), max(1, w // f)
     vs = cv2.resize(values * weight[..., None], (sw, sh), interpolation=cv2.INTER_AREA)
     ws = cv2.resize(weight, (sw, sh), interpolation=cv2.INTER_AREA)
+    # where no water is near at all, fall back to the global water mean (area resizing keeps the sums)
+    glob = vs.reshape(-1, values.shape[2]).sum(0) / max(float(ws.sum()), 1e-6) if ws.sum() > 0 else \
+        np.zeros(values.shape[2], np.float32)
     s = sigma_px / f
     vs = cv2.GaussianBlur(vs, (0, 0), s)
     ws = cv2.GaussianBlur(ws, (0, 0), s)
     m = vs / np.maximum(ws, 1e-4)[..., None]
-    # where no water is near at all, fall back to the global water mean
-    glob = (values * weight[..., None]).reshape(-1, values.shape[2]).sum(0) / max(weight.sum(), 1.0)
     m[ws < 1e-3] = glob
     return cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR), ws
 
@@ -595,9 +596,17 @@ class ClassicalDetector:
         land = dist_w > cfg.vehicle_water_gap_m
         if afloat is not None:
             land &= ~afloat
-        L, a, b = lab[..., 0], lab[..., 1], lab[..., 2]
         if class_ids is not None:
             land &= ~np.isin(class_ids, [WATER, GRASS, TREES])
+        if land.sum() * gsd * gsd < 2.5:  # no room for a car
+            return []
+        # work inside the bounding box of the land (plus the filters' reach): harbours are mostly water
+        reach = int(round(max(cfg.vehicle_hat_m, cfg.vehicle_shadow_m, 1.5) / gsd)) + 4
+        rows, cols = np.nonzero(land.any(1))[0], np.nonzero(land.any(0))[0]
+        y0, y1 = max(0, rows[0] - reach), min(h, rows[-1] + 1 + reach)
+        x0, x1 = max(0, cols[0] - reach), min(w, cols[-1] + 1 + reach)
+        land, lab = land[y0:y1, x0:x1], lab[y0:y1, x0:x1]
+        L, a, b = lab[..., 0], lab[..., 1], lab[..., 2]
         # vegetation: greenish and textured
         veg = (a < 122.0) & (b > 130.0)
         # cars are narrower than ~2.5 m: a white top-hat / black-hat with a ~3 m disc keeps bright and
@@ -643,13 +652,15 @@ class ClassicalDetector:
                     if _ring_fraction(paved, cx, cy, length, width, yaw, 1.0 / gsd) < cfg.vehicle_ground_frac:
                         continue
                     score = float(np.clip(0.3 + 0.5 * fill * min(1.0, contrast / 60.0), 0, 1))
-                    out.append(Detection("vehicle", score, (cx + 0.5) / scale, (cy + 0.5) / scale, length / scale,
-                                         width / scale, yaw))
+                    out.append(Detection("vehicle", score, (x0 + cx + 0.5) / scale, (y0 + cy + 0.5) / scale,
+                                         length / scale, width / scale, yaw))
         from .nms import rotated_nms
 
         out = rotated_nms(out, 0.2, ioa_threshold=0.6)
-        cand = cand_all
-        diff = np.maximum(tophat, blackhat)
-        if self.debug:
-            self.layers.update(vehicle_cand=cand.astype(bool), vehicle_diff=diff)
+        if self.debug:  # debug layers on the whole work grid
+            cand = np.zeros((h, w), bool)
+            cand[y0:y1, x0:x1] = cand_all
+            diff = np.zeros((h, w), np.float32)
+            diff[y0:y1, x0:x1] = np.maximum(tophat, blackhat)
+            self.layers.update(vehicle_cand=cand, vehicle_diff=diff)
         return out

@@ -50,6 +50,18 @@ def dominant_angles(mask: np.ndarray, n_peaks: int = 4, min_share: float = 0.3) 
     return sorted(angles)
 
 
+def _components_where(mask: np.ndarray, keep) -> np.ndarray:
+    """The 8-connected components of ``mask`` whose stats rows (cv2: x, y, w, h, area) pass ``keep``."""
+    import cv2
+
+    n, lbl, st, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    ok = np.zeros(n, bool)
+    ok[1:] = keep(st[1:].astype(np.float64))
+    if ok[1:].all():
+        return mask.astype(bool)
+    return ok[lbl]
+
+
 def _rotate(img: np.ndarray, angle_deg: float, interp) -> tuple[np.ndarray, np.ndarray]:
     """Rotate so that image direction ``angle_deg`` becomes horizontal (+col); returns (rotated, matrix)."""
     import cv2
@@ -203,8 +215,13 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
     walk_union = np.zeros(structure.shape, bool)
     dets: list[Detection] = []
     per_angle = []
+    # a blob whose bounding box has a diagonal shorter than a walkway holds no walkway: dropping those
+    # first (boats, most clutter) leaves the line openings little to do
+    long_structure = _components_where(structure, lambda st: np.hypot(st[:, 2], st[:, 3]) >= wl)
+    if not long_structure.any():
+        angles = []
     for a in angles:
-        wm = line_open(structure, a, wl, ww)
+        wm = line_open(long_structure, a, wl, ww)
         per_angle.append((a, wm))
         walk_union |= wm
     # one direction per pixel: the angle with the most support wins (duplicates from the +-2 deg spread)
@@ -234,6 +251,10 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
     fw = max(1, int(round(finger_max_width_m / gsd_m)))
     near_walk = cv2.dilate(walk_union.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     rest = structure & ~walk_union
+    if finger_angles:  # a finger is part of a blob that touches a walkway (the others cannot hold one)
+        n, lbl = cv2.connectedComponents(rest.astype(np.uint8), connectivity=8)
+        touch = np.unique(lbl[near_walk & (lbl > 0)])
+        rest = np.isin(lbl, touch[touch > 0]) if len(touch) else np.zeros_like(rest)
     finger_union = np.zeros(structure.shape, bool)
     for a in finger_angles:
         fm = line_open(rest, a, fl, fw, clear_px=max(1, int(round(finger_clear_m / gsd_m)))) & ~finger_union
