@@ -138,6 +138,7 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
     ``tol_m``; a segment touches land when any point of its footprint (grown by ``tol_m``) lies on a non-water
     class, or above the water level if there is no class map.
     """
+    from shapely import STRtree
     from shapely.geometry import Polygon
 
     piers = [o for o in scene.objects if o.category == "pier"]
@@ -146,7 +147,12 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
                 "all_connected": None}
     polys = [Polygon(o.footprint_m()) for o in piers]
     n = len(piers)
-    adj = [[j for j in range(n) if j != i and polys[i].distance(polys[j]) <= tol_m] for i in range(n)]
+    # pairs within tol_m from a spatial index (a marina has hundreds of segments: all pairs would be slow)
+    src, dst = STRtree(polys).query(polys, predicate="dwithin", distance=tol_m)
+    adj: list[list[int]] = [[] for _ in range(n)]
+    for i, j in zip(src.tolist(), dst.tolist()):
+        if i != j:
+            adj[i].append(j)
     on_land = [_touches_land(scene, p.buffer(tol_m)) for p in polys]
     # connected components of the touch graph = structures
     comp = [-1] * n

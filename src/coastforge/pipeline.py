@@ -246,7 +246,8 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         timings["total"] = round(timings["total"] + timings["export"], 3)
         scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
         scene_path = save_scene(scene, out, rasters=False)
-    return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports)
+    return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports,
+                           scene=scene, image=image.rgb)
 
 
 def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
@@ -266,8 +267,9 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
 
 
 def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: dict, objects, n_vegetation: int,
-                    exports: dict) -> GenerateResult:
-    """The report (when asked for, and when its extra is installed) and the result of a finished scene."""
+                    exports: dict, scene: Scene | None = None, image: np.ndarray | None = None) -> GenerateResult:
+    """The report (when asked for, and when its extra is installed) and the result of a finished scene
+    (``scene`` and the input ``image`` in memory spare the report reading them back)."""
     report_path = None
     if req.report:
         try:
@@ -276,7 +278,7 @@ def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: 
             build_report = None
         if build_report is not None:
             t0 = time.perf_counter()
-            report_path = build_report(out)
+            report_path = build_report(out, scene=scene, image=image)
             timings["report"] = round(time.perf_counter() - t0, 3)
     counts: dict[str, int] = {}
     for o in objects:

@@ -23,6 +23,7 @@ from .fsio import atomic_write_text
 from .scene import Scene, SceneObject, load_scene
 
 MAX_PX = 1400  # big pictures are shown at most this wide: keeps a 100-object report far under 15 MB
+TOP_MAX_PX = 1024  # the generated scene rendered from above
 THUMB_PX = 96  # crop / asset thumbnails in the objects table
 SECTIONS = ("overview", "classes", "detections", "objects", "terrain", "piers", "vegetation", "metrics",
             "provenance",
@@ -250,7 +251,9 @@ def _render_top(scene: Scene, assets: _Assets) -> np.ndarray | None:
     except ImportError:
         return None
     w, h = scene.extent_m
-    gsd = max(scene.gsd_m, max(w, h) / MAX_PX)
+    # shown beside the input at half the page width: ~1000 px is as sharp as it is ever displayed, and
+    # the procedural terrain costs per pixel
+    gsd = max(scene.gsd_m, max(w, h) / TOP_MAX_PX)
     cache: dict = {}
 
     def mesh_for(aid):
@@ -520,12 +523,13 @@ def _terrain_section(scene: Scene, scene_dir: Path) -> str:
 
 
 def _pier_graph(piers: list[SceneObject], tol_m: float = 0.5):
+    from shapely import STRtree
     from shapely.geometry import Polygon
 
     polys = [o.footprint_m() for o in piers]
     shp = [Polygon(p) for p in polys]
-    n = len(shp)
-    edges = [(i, j) for i in range(n) for j in range(i + 1, n) if shp[i].distance(shp[j]) <= tol_m]
+    src, dst = STRtree(shp).query(shp, predicate="dwithin", distance=tol_m)
+    edges = sorted((int(i), int(j)) for i, j in zip(src, dst) if i < j)
     return polys, edges
 
 
@@ -889,12 +893,14 @@ def _guard(name: str, fn, *args):
 
 
 def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: str | Path | None = None,
-                 overwrite: bool = False, progress: Callable[[str], None] | None = None) -> Path:
+                 overwrite: bool = False, progress: Callable[[str], None] | None = None, *,
+                 scene: Scene | None = None, image: np.ndarray | None = None) -> Path:
     """Write the offline ``report.html`` of the scene in ``scene_dir`` and return its path.
 
     ``out`` defaults to ``scene_dir/report.html``, which is always rebuilt (it is a view of the scene);
     another existing ``out`` is replaced only with ``overwrite``. ``truth`` (a truth scene) adds the
-    metrics. ``progress(step)`` is told which part is being built."""
+    metrics. ``progress(step)`` is told which part is being built. ``scene`` and ``image`` (the input
+    RGB) are what ``generate`` already holds in memory: given, they are not read back from disk."""
     t_start = time.perf_counter()
     say = progress or (lambda _msg: None)
     scene_path = Path(scene_dir)
@@ -913,10 +919,14 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     if out and out_path.exists() and not overwrite and out_path.resolve() != default_out:
         raise OutputExistsError(f"{out_path} exists; pass --overwrite to replace it, or choose another --out")
     say("loading the scene")
-    scene = load_scene(scene_path)
+    if scene is None:
+        scene = load_scene(scene_path)
     grid = scene.grid
     assets = _Assets(scene)
-    image, image_src = _input_image(scene, scene_dir)
+    if image is not None:
+        image_src = str((scene.provenance.get("input") or {}).get("image", ""))
+    else:
+        image, image_src = _input_image(scene, scene_dir)
     dets = _detections(scene_dir)
     objs = [o for o in scene.objects if o.category in EVALUATED_CATEGORIES]
     matches = [m for m in scene.provenance.get("matches", []) if isinstance(m, dict)]
