@@ -5,6 +5,7 @@ the exact version."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from coastforge.classes import CLASS_NAMES, GRASS, ROCKS, SAND, TREES, WATER
 from coastforge.config import Config
 from coastforge.errors import OutputExistsError
 from coastforge.fsio import read_png
+from coastforge.report import SECTION_FAILED
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +79,32 @@ def test_a_failing_background_job_fails_generate(level, tmp_path, monkeypatch):
     with pytest.raises(OSError, match="disk full"):
         run_generate(_request(level, out), Config())
     assert not (out / "scene.json").exists()  # the JSON is written last, never over incomplete outputs
+
+
+def test_side_process_gives_the_same_cleaned_image_and_report(level, tmp_path, monkeypatch):
+    """The spawned side process (the CLI's default on big images) writes what the threads write."""
+    pytest.importorskip("matplotlib")
+    from coastforge import pipeline
+    from coastforge.pipeline import run_generate
+
+    monkeypatch.setattr(pipeline, "SIDE_PROCESS_MIN_PX", 0)
+    started = []
+    real_start = pipeline._SideProcess.start.__func__
+
+    def start(cls, n_px):
+        sp = real_start(cls, n_px)
+        started.append(sp)
+        return sp
+
+    monkeypatch.setattr(pipeline._SideProcess, "start", classmethod(start))
+    a = run_generate(replace(_request(level, tmp_path / "threads"), report=True), Config())
+    b = run_generate(replace(_request(level, tmp_path / "side"), report=True, side_process=True), Config())
+    assert len(started) == 1 and started[0] is not None  # only the second run asked for it, and got it
+    assert np.array_equal(read_png(a.out_dir / "cleaned.png"), read_png(b.out_dir / "cleaned.png"))
+    html_a, html_b = (r.report_path.read_text(encoding="utf-8") for r in (a, b))
+    for html in (html_a, html_b):  # the terrain plots came back from the child
+        assert "Height map with land and bathymetry" in html
+        assert SECTION_FAILED not in html
 
 
 def test_coarse_weight_blur_matches_the_exact_blur():

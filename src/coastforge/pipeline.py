@@ -8,6 +8,7 @@ the scene's provenance; the folder is written stage by stage, so an interrupted 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import sys
 import time
@@ -40,6 +41,10 @@ class GenerateRequest:
     overwrite: bool = False
     report: bool = True
     command: str = ""
+    # a spawned side process for GIL-heavy side work on big images; off by default because a spawned
+    # child re-imports the caller's __main__ (a script without a main guard would run twice): the CLI,
+    # whose entry point is guarded, turns it on
+    side_process: bool = False
 
 
 @dataclass(frozen=True)
@@ -172,14 +177,7 @@ def scene_provenance(req: GenerateRequest, config: Config, library, gsd_m: float
 
 
 def run_generate(req: GenerateRequest, config: Config, progress: Progress | None = None) -> GenerateResult:
-    from .detection import detect
     from .io import read_image
-    from .matching import match_detections
-    from .piers import build_piers
-    from .segmentation import segment
-    from .terrain import estimate_terrain
-    from .types import HeightMap
-    from .vegetation import scatter
 
     from . import tiling
 
@@ -191,6 +189,27 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     with timer.stage("read"):
         image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
         grid = image.grid
+    side = _SideProcess.start(grid.width_px * grid.height_px) if req.side_process else None
+    try:
+        return _run_chain(req, config, image, out, timer, side)
+    finally:
+        if side is not None:
+            side.close()
+
+
+def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path, timer: _Timer,
+               side: "_SideProcess | None") -> GenerateResult:
+    """The stages after reading the image (``side``: the side process, when there is one)."""
+    from .detection import detect
+    from .matching import match_detections
+    from .piers import build_piers
+    from .segmentation import segment
+    from .terrain import estimate_terrain
+    from .types import HeightMap
+    from .vegetation import scatter
+
+    seed = config.seed
+    grid = image.grid
     # Independent work runs beside the main chain (segment → detect → terrain → piers → placement →
     # vegetation): the library loads while segmentation and detection run; matching (it needs the library
     # and the detections, not the terrain) runs beside terrain and piers; the cleaned image is only an
@@ -204,7 +223,7 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         with timer.stage("clean"):
             class_map = fill_under_objects(class_map, dets)
         bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed))
-        _write_segment_outputs(bg, out, image, class_map, dets, config, seed)
+        _write_segment_outputs(bg, out, image, class_map, dets, config, seed, side)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
             height: HeightMap = terrain.height
@@ -247,7 +266,7 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
         scene_path = save_scene(scene, out, rasters=False)
     return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports,
-                           scene=scene, image=image.rgb)
+                           scene=scene, image=image.rgb, side=side)
 
 
 def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
@@ -267,7 +286,8 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
 
 
 def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: dict, objects, n_vegetation: int,
-                    exports: dict, scene: Scene | None = None, image: np.ndarray | None = None) -> GenerateResult:
+                    exports: dict, scene: Scene | None = None, image: np.ndarray | None = None,
+                    side: "_SideProcess | None" = None) -> GenerateResult:
     """The report (when asked for, and when its extra is installed) and the result of a finished scene
     (``scene`` and the input ``image`` in memory spare the report reading them back)."""
     report_path = None
@@ -278,7 +298,8 @@ def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: 
             build_report = None
         if build_report is not None:
             t0 = time.perf_counter()
-            report_path = build_report(out, scene=scene, image=image)
+            report_path = build_report(out, scene=scene, image=image,
+                                       side=side.submit if side is not None else None)
             timings["report"] = round(time.perf_counter() - t0, 3)
     counts: dict[str, int] = {}
     for o in objects:
@@ -334,8 +355,66 @@ class _Background:
         return dict(sorted(self._t.items()))
 
 
+# images at least this big (pixels) get a side process; below, its start-up costs more than it saves
+SIDE_PROCESS_MIN_PX = 1_500_000
+
+
+def _side_warm_up() -> None:
+    """Imports the side process needs, done while the main process segments."""
+    import cv2  # noqa: F401
+
+    from .segmentation import clean  # noqa: F401
+
+    try:
+        from . import report  # noqa: F401 - and matplotlib with it, for the terrain plots
+        report._plt()
+    except ImportError:  # the report extra is not installed
+        pass
+
+
+def _side_clean(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> None:
+    from .fsio import write_png
+
+    write_png(path, _clean(image, dets, class_map, seed))
+
+
+class _SideProcess:
+    """One spawned worker process for pure-Python-heavy side work (the inpainted image, the report's
+    terrain plots). In a thread that work would hold the GIL against the main chain; in a process it
+    runs on the other core. ``start`` gives None (run it in a thread instead) for small images, in a
+    daemonic process (which may not have children) or where processes cannot start."""
+
+    def __init__(self, pool):
+        self._pool = pool
+
+    @classmethod
+    def start(cls, n_px: int) -> "_SideProcess | None":
+        import multiprocessing
+
+        if n_px < SIDE_PROCESS_MIN_PX or multiprocessing.current_process().daemon or (os.cpu_count() or 1) < 2:
+            return None
+        try:
+            from concurrent.futures import ProcessPoolExecutor
+
+            pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            pool.submit(_side_warm_up)
+        except (OSError, RuntimeError, ValueError):
+            return None
+        return cls(pool)
+
+    def run(self, fn, *args):
+        """``fn(*args)`` in the side process, waiting for its result (call it from a background thread)."""
+        return self._pool.submit(fn, *args).result()
+
+    def submit(self, fn, *args):
+        return self._pool.submit(fn, *args)
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,
-                           seed: int) -> None:
+                           seed: int, side: _SideProcess | None = None) -> None:
     """detections.json now; the cleaned image (transient objects removed: an output only, no later stage
     reads it) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
     from .detection import detections_to_json
@@ -344,7 +423,10 @@ def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_ma
 
     g = image.grid
     atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
-    bg.submit("cleaned", lambda: write_png(out / "cleaned.png", _clean(image, dets, class_map, seed)))
+    if side is not None:
+        bg.submit("cleaned", side.run, _side_clean, out / "cleaned.png", image, dets, class_map, seed)
+    else:
+        bg.submit("cleaned", lambda: write_png(out / "cleaned.png", _clean(image, dets, class_map, seed)))
     bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, image, config.segment)
 
 

@@ -11,6 +11,7 @@ import html
 import io
 import json
 import time
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 from typing import Callable
@@ -894,13 +895,15 @@ def _guard(name: str, fn, *args):
 
 def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: str | Path | None = None,
                  overwrite: bool = False, progress: Callable[[str], None] | None = None, *,
-                 scene: Scene | None = None, image: np.ndarray | None = None) -> Path:
+                 scene: Scene | None = None, image: np.ndarray | None = None,
+                 side: Callable | None = None) -> Path:
     """Write the offline ``report.html`` of the scene in ``scene_dir`` and return its path.
 
     ``out`` defaults to ``scene_dir/report.html``, which is always rebuilt (it is a view of the scene);
     another existing ``out`` is replaced only with ``overwrite``. ``truth`` (a truth scene) adds the
     metrics. ``progress(step)`` is told which part is being built. ``scene`` and ``image`` (the input
-    RGB) are what ``generate`` already holds in memory: given, they are not read back from disk."""
+    RGB) are what ``generate`` already holds in memory: given, they are not read back from disk. ``side``
+    (``submit(fn, *args) -> Future`` of another process) builds the terrain plots there."""
     t_start = time.perf_counter()
     say = progress or (lambda _msg: None)
     scene_path = Path(scene_dir)
@@ -941,9 +944,13 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     # top-down render and the other sections (mostly OpenCV/NumPy, which release the GIL) are built here.
     from concurrent.futures import ThreadPoolExecutor
 
-    side = ThreadPoolExecutor(max_workers=1, thread_name_prefix="coastforge-report")
-    terrain_part = side.submit(_guard, "terrain", _terrain_section, scene, scene_dir)
-    side.shutdown(wait=False)
+    if side is not None:  # matplotlib holds the GIL: in another process it does not slow the render here
+        terrain_part = side(_guard, "terrain", _terrain_section,
+                            replace(scene, objects=(), vegetation=None, classes=None), scene_dir)
+    else:
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="coastforge-report")
+        terrain_part = pool.submit(_guard, "terrain", _terrain_section, scene, scene_dir)
+        pool.shutdown(wait=False)
     say("rendering the scene from above")
     top = _render_top(scene, assets)
     parts["overview"] = _overview(image, top)

@@ -38,7 +38,8 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
         raise InputError(f"--export {','.join(bad)} is not a known format; valid formats: {', '.join(valid)}")
     req = GenerateRequest(image=image, out=out, gsd_m=gsd, size_m=tuple(size_m) if size_m else None,
                           library=library, exports=fmts, dems=tuple(dems), overwrite=overwrite,
-                          report=not no_report, command=shlex.join(["coastforge", *sys.argv[1:]]))
+                          report=not no_report, command=shlex.join(["coastforge", *sys.argv[1:]]),
+                          side_process=True)
     console = Console(stderr=True)
     with Progress(TextColumn("{task.description:<12}"), BarColumn(), TimeElapsedColumn(), console=console,
                   transient=True) as bar:
