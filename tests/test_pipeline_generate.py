@@ -107,6 +107,21 @@ def test_side_process_gives_the_same_cleaned_image_and_report(level, tmp_path, m
         assert SECTION_FAILED not in html
 
 
+def test_work_for_a_dead_side_process_is_redone_here():
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    from coastforge.pipeline import _SideProcess
+
+    class DeadPool:
+        def submit(self, fn, *args):
+            f = Future()
+            f.set_exception(BrokenProcessPool("killed (test)"))
+            return f
+
+    assert _SideProcess(DeadPool()).run(divmod, 7, 2) == (3, 1)
+
+
 def test_coarse_weight_blur_matches_the_exact_blur():
     import cv2
 

@@ -403,8 +403,14 @@ class _SideProcess:
         return cls(pool)
 
     def run(self, fn, *args):
-        """``fn(*args)`` in the side process, waiting for its result (call it from a background thread)."""
-        return self._pool.submit(fn, *args).result()
+        """``fn(*args)`` in the side process, waiting for its result (call it from a background thread); here
+        if the side process died (killed for memory, say): the work is redone rather than lost."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            return self._pool.submit(fn, *args).result()
+        except BrokenProcessPool:
+            return fn(*args)
 
     def submit(self, fn, *args):
         return self._pool.submit(fn, *args)

@@ -966,7 +966,10 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     objects_part = _guard("objects", _objects_section, scene, image, assets, links, dets)
     parts["objects"], asset_css = objects_part if isinstance(objects_part, tuple) else (objects_part, "")
     say("terrain plots")
-    parts["terrain"] = terrain_part.result()
+    try:
+        parts["terrain"] = terrain_part.result()
+    except Exception:  # noqa: BLE001 - the other process died (BrokenProcessPool): draw the plots here
+        parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
     say("piers and vegetation")
     parts["piers"] = _guard("piers", _piers_section, scene, base)
     parts["vegetation"] = _guard("vegetation", _vegetation_section, scene)
