@@ -29,6 +29,12 @@ class VectorIndex:
             raise LibraryError("index holds non-finite vectors; rebuild the library")
         self.dim = int(v.shape[1])
         self.row_asset = np.asarray(row_asset, dtype=np.int64)
+        # rows grouped by asset, for best-row-per-asset scores in one vectorised pass
+        self._order = np.argsort(self.row_asset, kind="stable")
+        sorted_assets = self.row_asset[self._order]
+        self._starts = np.flatnonzero(np.r_[True, sorted_assets[1:] != sorted_assets[:-1]]) if len(v) else \
+            np.zeros(0, np.intp)
+        self._start_asset = sorted_assets[self._starts] if len(v) else np.zeros(0, np.int64)
         self.index = faiss.IndexFlatIP(self.dim)
         if len(v):
             self.index.add(v)
@@ -47,14 +53,7 @@ class VectorIndex:
 
         ``allowed`` is a boolean mask over asset positions (e.g. one category).
         """
-        q = np.ascontiguousarray(queries, dtype=np.float32)
-        if q.ndim == 1:
-            q = q[None]
-        if q.ndim != 2 or q.shape[1] != self.dim:
-            raise LibraryError(
-                f"query vectors have shape {q.shape} but the library index has dimension {self.dim}: "
-                "they were made by another embedder; query with the library's own embedder"
-            )
+        q = self._check_queries(queries)
         if k < 1:
             raise LibraryError(f"k = {k} must be at least 1")
         if self.rows == 0:
@@ -76,6 +75,30 @@ class VectorIndex:
                         break
             out.append(sorted(best.items(), key=lambda t: -t[1]))
         return out
+
+    def asset_scores(self, queries: np.ndarray, n_assets: int) -> np.ndarray:
+        """Best cosine of every asset (its best-matching row) per query: (n, n_assets), -inf for an asset
+        without rows."""
+        q = self._check_queries(queries)
+        out = np.full((len(q), int(n_assets)), -np.inf, np.float32)
+        if self.rows == 0 or not len(q):
+            return out
+        scores, ids = self.index.search(q, self.rows)
+        full = np.empty_like(scores)
+        np.put_along_axis(full, ids, scores, axis=1)  # back to row order
+        out[:, self._start_asset] = np.maximum.reduceat(full[:, self._order], self._starts, axis=1)
+        return out
+
+    def _check_queries(self, queries: np.ndarray) -> np.ndarray:
+        q = np.ascontiguousarray(queries, dtype=np.float32)
+        if q.ndim == 1:
+            q = q[None]
+        if q.ndim != 2 or q.shape[1] != self.dim:
+            raise LibraryError(
+                f"query vectors have shape {q.shape} but the library index has dimension {self.dim}: "
+                "they were made by another embedder; query with the library's own embedder"
+            )
+        return q
 
     def save(self, path: str | Path) -> str:
         """Write the FAISS index atomically; return its SHA-256 (recorded in library.json)."""

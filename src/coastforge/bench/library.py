@@ -285,7 +285,8 @@ def main(argv=None) -> None:
     else:
         lib = default_library()
     report["library"] = {"root": str(lib.root), "assets": len(lib.assets), "rows": lib.index.rows,
-                         "load_or_build_s": round(time.perf_counter() - t0, 2)}
+                         "load_or_build_s": round(time.perf_counter() - t0, 2),
+                         "category_vote_t": getattr(lib, "CATEGORY_VOTE_T", None)}
     try:
         queries = render_queries(lib, args.per_asset, args.seed)
         report["rendered_queries"] = retrieval(lib, queries)
