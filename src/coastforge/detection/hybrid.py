@@ -125,25 +125,33 @@ class HybridDetector:
         return out
 
 
+def _inside(boxes: list[Detection], evidence: list[Detection]) -> np.ndarray:
+    """(len(boxes), len(evidence)) bool: evidence box j's centre lies inside box i."""
+    pts = np.array([[e.cx_px, e.cy_px] for e in evidence], float).reshape(-1, 2)
+    b = np.array([[d.cx_px, d.cy_px, d.length_px, d.width_px, d.yaw_deg] for d in boxes], float).reshape(-1, 5)
+    r = np.deg2rad(b[:, 4])
+    fx, fy = np.cos(r), -np.sin(r)  # forward in (col, row)
+    dx = pts[None, :, 0] - b[:, None, 0]
+    dy = pts[None, :, 1] - b[:, None, 1]
+    u = dx * fx[:, None] + dy * fy[:, None]
+    v = -dx * fy[:, None] + dy * fx[:, None]
+    return (np.abs(u) <= b[:, None, 2] / 2) & (np.abs(v) <= b[:, None, 3] / 2)
+
+
 def _supported_by(boxes: list[Detection], evidence: list[Detection]) -> list[Detection]:
     """The ``evidence`` boxes whose centre lies inside one of ``boxes``."""
-    return [e for e in evidence if _supported(boxes, [e])]
+    if not boxes or not evidence:
+        return []
+    hit = _inside(boxes, evidence).any(0)
+    return [e for e, h in zip(evidence, hit) if h]
 
 
 def _supported(boxes: list[Detection], evidence: list[Detection]) -> list[Detection]:
     """The boxes holding the centre of at least one ``evidence`` box."""
     if not boxes or not evidence:
         return []
-    pts = np.array([[e.cx_px, e.cy_px] for e in evidence])
-    out = []
-    for b in boxes:
-        r = np.deg2rad(b.yaw_deg)
-        f = np.array([np.cos(r), -np.sin(r)])  # forward in (col, row)
-        rel = pts - [b.cx_px, b.cy_px]
-        u, v = rel @ f, rel @ np.array([-f[1], f[0]])
-        if np.any((np.abs(u) <= b.length_px / 2) & (np.abs(v) <= b.width_px / 2)):
-            out.append(b)
-    return out
+    hit = _inside(boxes, evidence).any(1)
+    return [b for b, h in zip(boxes, hit) if h]
 
 
 def _core_pixels(img: np.ndarray, d: Detection, fu: float, fv: float) -> np.ndarray:
