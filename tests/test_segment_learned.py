@@ -137,3 +137,54 @@ def test_agreement_gate_picks_network_or_classical():
     ids = always.segment(img, 0).ids
     assert always.last_choice.startswith("network")
     assert (ids[:, :100] == WATER).mean() > 0.9 and (ids[:, 150:] == WATER).mean() < 0.05
+
+
+# ------------------------------------------------------------- network water when the rules find none
+
+
+def _have_weights() -> bool:
+    return learned.default_weights().is_file()
+
+
+def test_network_water_replaces_none_from_the_classical_rules(tmp_path):
+    """A silty olive-brown river (synthetic simple_pier_a, seed 3) has a colour the classical water
+    rules do not know (it is as khaki as yellow-cast pavement): they find no water at all, and their
+    land seeds on the river make the self-check reject the network. The network sees the river, is
+    sure of it, and agrees with the rules off it: its water is used."""
+    if not _have_weights():
+        pytest.skip("learned segmenter weights are not shipped in this checkout")
+    synth = pytest.importorskip("coastforge.synth")
+    from coastforge.fsio import read_png
+    from coastforge.io import read_image
+    from coastforge.segmentation import segment
+
+    synth.synth_to_dir("simple_pier_a", 3, tmp_path, gsds=(0.3,), overwrite=True)
+    truth_scene = json.loads((tmp_path / "truth.json").read_text(encoding="utf-8"))
+    truth = read_png(tmp_path / truth_scene["terrain"]["classes"])
+    image = read_image(tmp_path / "image_0.30m.png", gsd_m=0.3)
+    t = cv2.resize(truth, (image.rgb.shape[1], image.rgb.shape[0]), interpolation=cv2.INTER_NEAREST) == WATER
+    classical = segment(image, SegmentConfig(backend="classical")).ids == WATER
+    assert classical.mean() < 0.01  # the premise: the rules miss this river entirely
+    seg = learned.LearnedSegmenter(SegmentConfig())
+    w = seg.segment(image).ids == WATER
+    assert (w & t).sum() / (w | t).sum() > 0.9
+    assert "network water" in seg.last_choice
+
+
+def test_network_water_not_trusted_on_a_photo_without_water():
+    """On a real car park crop the network calls much of the asphalt water, unsure (~0.7): the
+    classical result (no water) stands."""
+    from pathlib import Path
+
+    if not _have_weights():
+        pytest.skip("learned segmenter weights are not shipped in this checkout")
+    shared = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    path = shared / "aerial" / "vehicles_p1053" / "image.jpg"
+    if not path.is_file():
+        pytest.skip(f"real test image {path} not found (../shared/data is not part of the repository)")
+    from coastforge.io import read_image
+
+    seg = learned.LearnedSegmenter(SegmentConfig())
+    ids = seg.segment(read_image(path, gsd_m=0.125)).ids
+    assert (ids == WATER).mean() < 0.01
+    assert seg.last_choice.startswith("classical")

@@ -6,9 +6,10 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
    scales (std of lightness over ~1.2 m and ~4 m, gradient energy, gradient coherence, share of bright
    pixels), plus colour and texture averaged over ~8 m as context.
 2. Water first, because everything downstream depends on it: connected regions that are smooth at both
-   scales, cut at colour edges, water-coloured (blue, turquoise, green-olive, very dark; neutral grey
-   only when very large) and large in metres and pixels. Same-coloured smaller pieces join; water then
-   grows into connected pixels of its local colour, pale shallows and cast shadows. Gaps narrower than
+   scales, cut at colour edges, water-coloured (blue, turquoise, green-teal, green-olive, very dark;
+   neutral grey only when very large) and large in metres and pixels. Same-coloured smaller pieces
+   join; water then grows into connected pixels of its local colour, pale shallows and cast shadows,
+   but not into rough ground (riprap, whose dark gaps match a grey sea). Gaps narrower than
    ~2 x ``water_close_m`` are closed, enclosed non-vegetated blobs up to ``water_hole_max_m2`` (boats,
    pier clusters: objects whose terrain is water) are filled, as are fragmented narrow structures still
    tied to the shore (``pier_open_m``). At full resolution the open waterline is re-decided per pixel
@@ -46,6 +47,16 @@ from ..rng import stage_seed
 from ..types import ClassMap, GeoImage
 
 LAND = (ASPHALT, SIDEWALK, GRASS, TREES, DIRT, ROCKS, SAND)
+# green-teal water (hue above ~149 deg in a*b*: b* < 0.6 |a*|) is bluer than lawns and canopies, whose
+# yellow-green sits at ~120-140 deg (b* > 0.85 |a*|) in our renders and in photos
+TEAL_MAX_B = 0.6
+# water does not grow into rough ground: std of L* over ~1.2 m above ROUGH_T1, share of bright pixels
+# below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
+ROUGH_T1 = 3.0
+ROUGH_BRIGHT = 0.05
+ROUGH_COH = 0.55
+# riprap's stones are resolved as texture only on images finer than this (m/px)
+FINE_GSD_M = 1.0
 # a canopy's excess green over the pavement's (``greenness``, mean colour over ~3 m) is above this;
 # dark car rows and shadows on pavement sit at or below 0
 TREE_MIN_GREEN = 0.015
@@ -144,11 +155,13 @@ def _disk(radius_px: float) -> np.ndarray:
 
 
 def water_colour(F: Features) -> np.ndarray:
-    """Pixels whose colour water can have: blue/cyan, dark olive-green, very dark, or dark neutral grey."""
+    """Pixels whose colour water can have: blue/cyan/teal, dark olive-green, very dark, or dark neutral
+    grey."""
     L, a, b = F.L, F.a, F.b
     # blue water: saturated blues have a* > 0, so allow red-green up to ~0.4 |b*| (not purple)
     bluish = ((b < -3.0) | (F.bdom > 0.015)) & (L < 88) & (a < 4.0 + 0.4 * np.maximum(-b, 0.0))
-    cyan = (a < -6.0) & (b < 6.0) & (L < 85)  # clear shallow water over sand: bright turquoise
+    # clear shallow water over sand (bright turquoise) and green-teal seas: bluer than any lawn
+    cyan = (a < -6.0) & (b < np.maximum(6.0, TEAL_MAX_B * -a)) & (L < 85)
     # green-olive water (algae, turbid basins): green at least as strong as yellow, unlike dark forest
     olive = (a < -4.0) & (L < 52) & (b < 1.2 * (-a) + 1.0) & (b > -40.0)
     dark = (L < 20.0) & (a < 6.0)
@@ -197,7 +210,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         area = stats[c, cv2.CC_STAT_AREA] * px_m2
         lawn = mexg[c] > 0.3 and mchroma[c] > 20.0  # bright green: a lawn or a sports field
         cast = ((mb[c] < -3.0) or (ma[c] < -4.0 and mL[c] < 50 and mb[c] < 1.2 * -ma[c] + 1.0)
-                or (mL[c] < 18 and mb[c] < 8.0) or (ma[c] < -6.0 and mb[c] < 6.0))
+                or (mL[c] < 18 and mb[c] < 8.0) or (ma[c] < -6.0 and mb[c] < max(6.0, TEAL_MAX_B * -ma[c])))
         if cast and not lawn:
             keep[c] = True
         elif mchroma[c] < 9.0:
@@ -247,6 +260,14 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     # each pass reaches ~5 m further (the reference is only defined near water): gradual shallows
     # (pale water over sand, up to ~45 m wide) need several passes; the water-colour gate keeps the
     # growth off beaches and lawns. Growth stops once a pass adds under 0.05 % of the image.
+    # Riprap and rubble: rough isotropic texture (not the straight edge of a wall's shadow, low
+    # coherence) with nothing bright nearby (boats, decks, foam). Its dark gaps match a grey or dark
+    # sea's colour and would carry the water across the revetment. Stones are only resolved below
+    # ~1 m/px; on coarser images every window is a few pixels wide and the test means nothing.
+    if gsd <= FINE_GSD_M:
+        rough = (F.tex1 > ROUGH_T1) & (F.bright < ROUGH_BRIGHT) & (F.coh < ROUGH_COH)
+    else:
+        rough = np.zeros(F.L.shape, bool)
     for _ in range(9):
         before = int(water.sum())
         norm = cv2.blur(wf, (k, k))
@@ -258,7 +279,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         shadow = (F.L < Lr - 3.0) & (F.L > 0.25 * Lr) & (np.abs(F.a - ar * sc) + np.abs(F.b - br * sc) < 6.0)
         # very flat pixels continuing the local water colour join whatever their hue (turbid green
         # shallows); a lawn is neither that flat nor that close to the water colour
-        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow)
+        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow) & ~rough
         n2, lab2 = cv2.connectedComponents((close | water).astype(np.uint8), connectivity=8)
         ids2 = np.unique(lab2[water])
         water = np.isin(lab2, ids2[ids2 > 0])

@@ -6,9 +6,11 @@ The image is resampled to the model's working GSD (0.3 m/px), run in overlapping
 memory on large images; only tile centres are kept) with a mirrored pass averaged in, land specks
 are merged, and the class probabilities are upsampled bilinearly to the image grid (smooth borders
 rather than blocks of working pixels). Water comes from the classical water model (large-scale rules
-that handle rafted boats and piers). A self-check guards against photos unlike our renders: when the
-network disagrees with the classical colour rules on their confident pixels, the classical segmenter
-is used instead (it is also used outside 0.04-0.6 m/px).
+that handle rafted boats and piers), or from the network when those rules find none at all and the
+network is sure of a large body of water (a colour the rules do not know). A self-check guards
+against photos unlike our renders: when the network disagrees with the classical colour rules on
+their confident pixels, the classical segmenter is used instead (it is also used outside 0.04-0.6
+m/px).
 """
 
 from __future__ import annotations
@@ -31,6 +33,12 @@ TILE_PX = 768  # tile side at the working GSD (memory ~ 40 MB of activations per
 FLIPS = ((), (3,), (2,), (2, 3))  # test-time passes: as is, mirrored, flipped, both (numpy axes of NCHW)
 GSD_RANGE_M = (0.04, 0.6)  # outside, the classical segmenter is used (see LearnedSegmenter.segment)
 OVERLAP_PX = 48  # context kept around each tile centre (> half the network's useful receptive field)
+# the network's water replaces the classical water model's only when that found at most this share of
+# the image, the network's water covers at least NET_WATER_MIN_FRAC at a mean probability of at least
+# NET_WATER_MIN_P, and its land agrees with the colour rules off that water (see _net_water_instead)
+NET_WATER_MAX_CLASSICAL = 0.01
+NET_WATER_MIN_FRAC = 0.05
+NET_WATER_MIN_P = 0.9
 
 
 def default_weights() -> Path:
@@ -159,13 +167,20 @@ class LearnedSegmenter:
             return ClassMap(ids=ids, grid=image.grid)
         # one pass first: the self-check decides whether the flipped passes are worth running
         lg = self.logits_small(small, FLIPS[:1])
-        p = _softmax(lg)
+        p_net = _softmax(lg)
+        p = p_net.copy()
         p[..., WATER] = -1.0  # land classes from the network, water from the classical model
         water = self._classical_water(rgb, gsd, p)
         if not isinstance(water, np.ndarray):  # the network disagrees with the image's clear cases
-            self.last_choice = f"classical (agreement {self.last_agreement:.2f})"
-            return ClassicalSegmenter(cfg).segment(image, seed, pre=water)
-        self.last_choice = f"network land + classical water (agreement {self.last_agreement:.2f})"
+            net_water = self._net_water_instead(rgb, p_net, p, water)
+            if net_water is None:
+                self.last_choice = f"classical (agreement {self.last_agreement:.2f})"
+                return ClassicalSegmenter(cfg).segment(image, seed, pre=water)
+            water = net_water
+            self.last_choice = (f"network land + network water: the classical water model found none "
+                                f"(agreement {self.last_agreement:.2f})")
+        else:
+            self.last_choice = f"network land + classical water (agreement {self.last_agreement:.2f})"
         if self.flips > 1:
             n = self.flips
             lg = (lg + (n - 1) * self.logits_small(small, FLIPS[1:n])) / n
@@ -213,6 +228,43 @@ class LearnedSegmenter:
             return water
         ids_c[water] = WATER
         return refine_water_edge(rgb, ids_c, water, F, open_water=open_water) == WATER
+
+    def _net_water_instead(self, rgb: np.ndarray, p_net: np.ndarray, land_p: np.ndarray,
+                           pre: tuple) -> np.ndarray | None:
+        """Water on the image grid from the network, when the classical water model found (almost)
+        none but the network sees a large body of water it is sure of (a colour the classical rules do
+        not know, e.g. a silty olive-brown river, whose pixels the rules then seed as land, so the
+        self-check fails on them) and the network's land classes agree with the rules' confident
+        pixels everywhere else. Else None (the classical segmenter is used, as before).
+
+        On real photos unlike our renders the network's water is not to be trusted (it calls half of a
+        DOTA car park water, at ~0.7 probability): the confidence and the agreement off the water
+        both guard against that."""
+        from .classical import land_seeds
+
+        cfg = self.config
+        F, water_c, _open = pre
+        if water_c.mean() > NET_WATER_MAX_CLASSICAL:
+            return None
+        wn = p_net.argmax(axis=2) == WATER
+        if wn.mean() < NET_WATER_MIN_FRAC or float(p_net[..., WATER][wn].mean()) < NET_WATER_MIN_P:
+            return None
+        hc, wc = water_c.shape
+        wn_c = cv2.resize(wn.astype(np.uint8), (wc, hc), interpolation=cv2.INTER_NEAREST).astype(bool)
+        if land_p.shape[:2] != (hc, wc):
+            ids_c = _upsample_argmax(land_p, hc, wc)
+        else:
+            ids_c = land_p.argmax(2).astype(np.uint8)
+        seeds = land_seeds(F, wn_c, cfg.rocks_shore_m)
+        m = seeds >= 0
+        if m.sum() < 200:
+            return None
+        agreement = float((ids_c[m] == seeds[m]).mean())
+        if agreement < float(getattr(cfg, "learned_min_agreement", 0.7)):
+            return None
+        self.last_agreement = agreement
+        H, W = rgb.shape[:2]
+        return _upsample_argmax(p_net, H, W) == WATER if p_net.shape[:2] != (H, W) else wn
 
 
 def _softmax(logits: np.ndarray) -> np.ndarray:

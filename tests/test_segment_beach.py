@@ -1,0 +1,121 @@
+"""Green-teal seas (the synthetic ``beach`` level, seed 0: sea at L* ~52, a* ~-20, b* ~+9, with dark
+seagrass patches) are water, not grass, for the classical segmenter and for the learned one (whose
+water comes from the classical water model); yellow-green lawns beside them stay land."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from coastforge.classes import GRASS, SAND, WATER
+from coastforge.config import SegmentConfig
+from coastforge.types import GeoImage, Grid
+
+SEA = (92, 133, 108)  # Lab ~(52, -20, 9): hue ~155 deg, bluer than any lawn
+SEAGRASS = (70, 113, 92)  # Lab ~(44, -20, 7): darker patches of the same hue
+LAWN = (111, 148, 73)  # Lab ~(57, -26, 35): hue ~127 deg
+SAND_RGB = (210, 190, 160)
+
+
+def teal_beach(seed: int = 0, size: int = 400, gsd: float = 0.25):
+    """Sea on the right (teal, with blotchy dark seagrass and a little sensor noise), a sand strip, then
+    a textured lawn on the left. Returns the image and its truth ids."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size]
+    shore = size * 0.5 + 10 * np.sin(yy / 23.0)
+    truth = np.full((size, size), GRASS, np.uint8)
+    truth[xx >= shore] = WATER
+    truth[(xx < shore) & (xx >= shore - size * 0.15)] = SAND
+    # seagrass: thresholded smooth noise, ~20 % of the sea in blobs several metres across
+    blob = cv2.GaussianBlur(rng.normal(0, 1, (size, size)).astype(np.float32), (0, 0), 10.0)
+    patches = blob > np.percentile(blob, 80)
+    rgb = np.zeros((size, size, 3), np.float32)
+    rgb[truth == WATER] = SEA
+    rgb[(truth == WATER) & patches] = SEAGRASS
+    rgb[truth == SAND] = SAND_RGB
+    lawn = truth == GRASS
+    rgb[lawn] = np.asarray(LAWN, np.float32) + rng.normal(0, 6.0, (int(lawn.sum()), 1))
+    rgb += rng.normal(0, 1.5, rgb.shape)
+    return GeoImage(rgb=np.clip(rgb, 0, 255).astype(np.uint8), grid=Grid(size, size, gsd)), truth
+
+
+def _iou(a, b):
+    return (a & b).sum() / max(1, (a | b).sum())
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_teal_sea_is_water_classical(seed):
+    from coastforge.segmentation import segment
+
+    image, truth = teal_beach(seed)
+    ids = segment(image, SegmentConfig(backend="classical")).ids
+    assert _iou(ids == WATER, truth == WATER) > 0.95
+    assert (ids[truth == GRASS] == WATER).mean() < 0.02  # the lawn is not taken for water
+    assert (ids[truth == GRASS] == GRASS).mean() > 0.8
+
+
+def test_teal_sea_is_water_learned():
+    pytest.importorskip("onnxruntime")
+    from coastforge.segmentation import segment
+    from coastforge.segmentation.learned import default_weights
+
+    if not default_weights().is_file():
+        pytest.skip("learned segmenter weights are not shipped in this checkout")
+    image, truth = teal_beach(2)
+    ids = segment(image, SegmentConfig(backend="learned")).ids
+    assert _iou(ids == WATER, truth == WATER) > 0.95
+    assert (ids[truth == GRASS] == WATER).mean() < 0.02
+
+
+def test_yellow_green_lawn_alone_is_not_water():
+    """A large, smooth lawn of the usual yellow-green hue (no texture at all) must not become water."""
+    from coastforge.segmentation import segment
+
+    noise = np.random.default_rng(3).normal(0, 0.7, (200, 200, 1))
+    rgb = np.clip(np.asarray(LAWN, np.float32) + noise, 0, 255)
+    ids = segment(GeoImage(rgb=rgb.astype(np.uint8), grid=Grid(200, 200, 0.5)), SegmentConfig()).ids
+    assert (ids == WATER).mean() < 0.02
+
+
+GREY_SEA = (100, 110, 104)  # Lab ~(45, -5, 2): overcast, turbid grey-green water (rocky_shore, seed 0)
+
+
+def riprap_shore(seed: int = 0, size: int = 500, gsd: float = 0.2, band_m: float = 8.0):
+    """Grey sea below, a band of riprap (grey stones ~1 m across with dark gaps) along the shore, a
+    lawn above. Returns the image and a mask of the riprap band."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size]
+    shore = size * 0.45 + 8 * np.sin(xx / 31.0)
+    band_px = band_m / gsd
+    sea = yy >= shore
+    rip = (yy < shore) & (yy >= shore - band_px)
+    rgb = np.zeros((size, size, 3), np.float32)
+    rgb[sea] = GREY_SEA
+    rgb[~sea & ~rip] = LAWN
+    rgb[~sea & ~rip] += rng.normal(0, 6.0, (int((~sea & ~rip).sum()), 1))
+    # stones: random discs of mid-grey over dark gaps (the shadows between them)
+    stones = np.full((size, size, 3), 40.0, np.float32)
+    r = max(2, int(round(0.5 / gsd)))
+    ys, xs = np.nonzero(rip)
+    for _ in range(int(rip.sum() / (r * r * 2.5))):
+        i = rng.integers(ys.size)
+        g = float(rng.uniform(85, 150))
+        radius = int(rng.integers(r - 1, r + 2))
+        cv2.circle(stones, (int(xs[i]), int(ys[i])), radius, (g, g * 1.01, g * 0.98), -1)
+    rgb[rip] = stones[rip]
+    rgb += rng.normal(0, 1.5, rgb.shape)
+    return GeoImage(rgb=np.clip(rgb, 0, 255).astype(np.uint8), grid=Grid(size, size, gsd)), sea, rip
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_riprap_beside_grey_sea_stays_land(seed):
+    """The dark gaps between a revetment's stones match a grey sea's colour; the water must not grow
+    through them and take the whole revetment (rocky_shore seed 0 lost every rock pixel to water)."""
+    from coastforge.segmentation import segment
+
+    image, sea, rip = riprap_shore(seed)
+    ids = segment(image, SegmentConfig(backend="classical")).ids
+    assert _iou(ids == WATER, sea) > 0.95
+    assert (ids[rip] == WATER).mean() < 0.25
+
