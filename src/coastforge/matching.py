@@ -6,10 +6,11 @@ candidate's top views are also fitted to the crop at metric scale over a small s
 and both headings, on paint-invariant orientation fields (``ShapeMatcher``): car and small-boat paint is
 arbitrary, their outline and structure are not. The fit's correlation, the embedding's cosine, a prior on
 the instance's scale and the detected length/width against the fitted asset make the score; the fit at
-both headings (with the detector's heading confidence as a prior) decides bow from stern. Without it the
-embedding and a size likelihood decide and, if the detector was unsure, an NCC of the crop against the
-chosen asset's top view at both headings. ``best`` takes the top candidate, ``sample`` (the paper's
-behaviour) a seeded random one within a score margin. Every decision (candidates, scores, choice, fitted
+both headings (each at its own best place), a grey-level comparison with the asset's mean view and the
+detector's heading confidence as a prior (both weighted more on objects of few pixels) decide bow from
+stern. Without it the embedding and a size likelihood decide and, if the detector was unsure, an NCC of
+the crop against the chosen asset's top view at both headings. ``best`` takes the top candidate,
+``sample`` (the paper's behaviour) a seeded random one within a score margin. Every decision (candidates, scores, choice, fitted
 scale and centre offset) is recorded.
 """
 
@@ -48,7 +49,7 @@ class MatchDecision:
     score: float
     yaw_deg: float
     heading_source: str  # detector | library | unresolved
-    flip_evidence: float  # NCC(same heading) - NCC(flipped); > 0 supports the chosen yaw
+    flip_evidence: float  # library: NCC(same heading) - NCC(flipped) (+ grey cue); > 0 supports the yaw
     candidates: tuple[Candidate, ...]
     fit_scale: float | None = None  # the chosen asset's scale that fitted the crop best (shape re-ranking)
     fit_offset_m: tuple[float, float] = (0.0, 0.0)  # fitted centre - box centre, along the final yaw and to its left
@@ -174,14 +175,47 @@ def _logit(p: float) -> float:
     return math.log(p / (1.0 - p))
 
 
+def _pixel_scaling(config: MatchConfig, det: Detection) -> float:
+    """``heading_prior_ref_px`` / the object's length in the pixels the shape fit compares (at most
+    ``ShapeMatcher.MAX_LEN_PX``): the fit's heading evidence is noisier on objects of few pixels, so the
+    other cues count more there."""
+    if config.heading_prior_ref_px <= 0:
+        return 1.0
+    return config.heading_prior_ref_px / max(min(det.length_px, ShapeMatcher.MAX_LEN_PX), 4.0)
+
+
+def heading_prior(config: MatchConfig, det: Detection) -> float:
+    """The detector's heading belief in units of the shape fit's heading evidence (NCC difference):
+    ``heading_prior_weight`` x logit(confidence) x the pixel scaling (``_pixel_scaling``)."""
+    return config.heading_prior_weight * _logit(det.heading_confidence) * _pixel_scaling(config, det)
+
+
+_MEAN_VIEW_CACHE: dict = {}
+
+
+def mean_view(library, asset_id: str, background: str) -> tuple[np.ndarray, float]:
+    """The mean of the asset's stored views on ``background`` (lightings, repainted copies; front at +x) and
+    its metres per pixel, cached: what every paint shares (dark glass, the cabin's outline) stays."""
+    key = (id(library), asset_id, background)
+    if key not in _MEAN_VIEW_CACHE:
+        if hasattr(library, "views_on"):
+            views = library.views_on(asset_id, background)
+            gsd = float(library.asset(asset_id).view_gsd_m)
+            _MEAN_VIEW_CACHE[key] = (np.mean([v.astype(np.float32) for v in views], axis=0), gsd)
+        else:
+            _MEAN_VIEW_CACHE[key] = asset_top_view(library, asset_id, background)
+    return _MEAN_VIEW_CACHE[key]
+
+
 def match_detections(image: GeoImage, dets: list[Detection], library, config: MatchConfig, seed: int,
                      heading_min_evidence: float = 0.03, heading_trust: float = 0.7) -> list[MatchDecision]:
     """Choose an asset and a final yaw for every boat, vehicle and buoy detection.
 
     With ``config.shape`` (the default) every asset of the category is fitted to the crop by shape (see
     ``ShapeMatcher``) at both headings; the score adds the embedding's cosine, a prior on the instance's
-    scale and the detected length/width against the fitted asset, and the detector's heading confidence
-    weighs against the shape's heading. Without it: embedding + size likelihood, heading from NCC."""
+    scale and the detected length/width against the fitted asset. The heading: the chosen asset's fit at
+    both headings plus a grey-level cue, against the detector's confidence as a prior (``heading_prior``).
+    Without it: embedding + size likelihood, heading from NCC."""
     todo = [(i, d) for i, d in enumerate(dets) if d.category in ASSET_CATEGORIES_FOR]
     if not todo:
         return []
@@ -222,7 +256,7 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
             if any(a.id not in shapes for a in pool):  # one scale for all candidates, or none
                 shapes = {}
         # the detector's belief in its heading, as a bonus for fits at that heading
-        hp = config.heading_prior_weight * _logit(d.heading_confidence) if d.heading_known else 0.0
+        hp = heading_prior(config, d) if d.heading_known else 0.0
         cands, fits = [], {}
         for a in pool:
             app = float(appearance.get(a.id, -1.0))
@@ -249,14 +283,24 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
         yaw, source, evidence = float(d.yaw_deg), "detector", 0.0
         fit_scale, offset = None, (0.0, 0.0)
         if chosen.asset_id in fits:
-            # heading from the fit: the chosen asset at both headings, the detector's confidence as a prior
-            flipped, sh = fits[chosen.asset_id]
+            # heading from the fit: the chosen asset at both headings, the detector's confidence as a prior, and
+            # the grey levels against the asset's mean view (what the paint-invariant fit cannot see)
+            sh = fits[chosen.asset_id][1]
             ncc_keep = sh.ncc_other_heading if sh.flipped else sh.ncc
             ncc_flip = sh.ncc if sh.flipped else sh.ncc_other_heading
-            evidence = (ncc_flip - ncc_keep) if flipped else (ncc_keep - ncc_flip)
+            lib_ev = ncc_keep - ncc_flip  # the library's evidence for the detector's heading
+            if config.heading_appearance_weight > 0:
+                try:
+                    view, view_gsd = mean_view(library, chosen.asset_id, bg)
+                    grey = heading_evidence(crops[row], gsds[row], view, view_gsd, L, W)
+                except LibraryError:  # views unreadable: the fit and the detector decide
+                    grey = 0.0
+                lib_ev += config.heading_appearance_weight * _pixel_scaling(config, d) * grey
+            flipped = lib_ev + hp < 0  # as in the candidates' scores when the grey cue is off
+            evidence = -lib_ev if flipped else lib_ev
             if flipped:
                 yaw = float(wrap_deg(yaw + 180.0))
-            if abs(ncc_keep - ncc_flip) >= heading_min_evidence or flipped:
+            if abs(lib_ev) >= heading_min_evidence or flipped:
                 source = "library"
             elif not d.heading_known:
                 source = "unresolved"
@@ -466,9 +510,10 @@ class ShapeMatcher:
         bx, by = 0.55 * length_m / gsd, 0.55 * det.width_px * image_gsd / gsd
         box_norm = float(np.sqrt(energy[max(0, int(ccy - by)):int(math.ceil(ccy + by)) + 1,
                                         max(0, int(ccx - bx)):int(math.ceil(ccx + bx)) + 1].sum()))
-        # 1. where is each candidate's best fit? Its template at the scale nearest the box, at the box's
-        #    heading, over the full shift range (the template is symmetric about the footprint centre, so the
-        #    other heading fits at the same place)
+        # 1. where is each candidate's best fit? Its template at the scale nearest the box, over the full shift
+        #    range, at each heading searched: each heading gets its own best place. (Placing both at the box
+        #    heading's best fit biased the heading toward the detector's: a car's cabin, fitted by shifting the
+        #    template, then sits where only that heading explains it.)
         offsets = {}
         for aid in asset_ids:
             mine = [p for p in plans if p[0] == aid]
@@ -477,36 +522,38 @@ class ShapeMatcher:
             tpl = min(mine, key=lambda p: p[3])[2]
             th, tw = tpl.shape
             y0, x0 = (ch - th) // 2 - sy, (cw - tw) // 2 - sx
-            num = cv2.matchTemplate(field[y0:y0 + th + 2 * sy, x0:x0 + tw + 2 * sx], tpl.weighted[False],
-                                    cv2.TM_CCORR)
-            den = cv2.matchTemplate(energy[y0:y0 + th + 2 * sy, x0:x0 + tw + 2 * sx], tpl.mask[False], cv2.TM_CCORR)
-            j = int(np.argmax(num / np.sqrt(np.maximum(den, 1e-6))))
-            offsets[aid] = (j // num.shape[1] - sy, j % num.shape[1] - sx)
+            fwin = field[y0:y0 + th + 2 * sy, x0:x0 + tw + 2 * sx]
+            ewin = energy[y0:y0 + th + 2 * sy, x0:x0 + tw + 2 * sx]
+            for flip in headings:
+                num = cv2.matchTemplate(fwin, tpl.weighted[flip], cv2.TM_CCORR)
+                den = cv2.matchTemplate(ewin, tpl.mask[flip], cv2.TM_CCORR)
+                j = int(np.argmax(num / np.sqrt(np.maximum(den, 1e-6))))
+                offsets[(aid, flip)] = (j // num.shape[1] - sy, j % num.shape[1] - sx)
         # 2. every candidate, scale and heading near that position (+-1 px): small matrix products over the
         #    3 x 3 windows (strided views, no per-window calls)
         fs, es = field.strides, energy.strides
         res: dict[str, list] = {}
         for aid, s, tpl, _d in plans:
             th, tw = tpl.shape
-            oy, ox = offsets[aid]
-            y0, x0 = (ch - th) // 2 + oy - 1, (cw - tw) // 2 + ox - 1
-            y0, x0 = min(max(y0, 0), ch - th - 2), min(max(x0, 0), cw - tw - 2)
-            win = np.ndarray((3, 3, th, tw, 2), np.float32, field, y0 * fs[0] + x0 * fs[1],
-                             (fs[0], fs[1], fs[0], fs[1], fs[2])).reshape(9, -1)
-            win_e = np.ndarray((3, 3, th, tw), np.float32, energy, y0 * es[0] + x0 * es[1],
-                               (es[0], es[1], es[0], es[1])).reshape(9, -1)
-            under = np.sqrt(np.sqrt(np.maximum(win_e @ tpl.flat_mask, 1e-6)))  # sqrt(|crop under the template|)
-            v = (win @ tpl.flat_weighted) / (under * math.sqrt(max(box_norm, 1e-6)) * tpl.norm)  # (9, 2)
             for k, flip in enumerate((False, True)):
                 if flip not in headings:
                     continue
-                j = int(np.argmax(v[:, k]))
-                val = float(v[j, k])
+                oy, ox = offsets[(aid, flip)]
+                y0, x0 = (ch - th) // 2 + oy - 1, (cw - tw) // 2 + ox - 1
+                y0, x0 = min(max(y0, 0), ch - th - 2), min(max(x0, 0), cw - tw - 2)
+                win = np.ndarray((3, 3, th, tw, 2), np.float32, field, y0 * fs[0] + x0 * fs[1],
+                                 (fs[0], fs[1], fs[0], fs[1], fs[2])).reshape(9, -1)
+                win_e = np.ndarray((3, 3, th, tw), np.float32, energy, y0 * es[0] + x0 * es[1],
+                                   (es[0], es[1], es[0], es[1])).reshape(9, -1)
+                under = np.sqrt(np.sqrt(np.maximum(win_e @ tpl.flat_mask[:, k], 1e-6)))  # sqrt(|crop under it|)
+                v = (win @ tpl.flat_weighted[:, k]) / (under * math.sqrt(max(box_norm, 1e-6)) * tpl.norm)  # (9,)
+                j = int(np.argmax(v))
+                val = float(v[j])
                 r = res.setdefault(aid, [(-2.0, 1.0, 0.0, 0.0), (-2.0, 1.0, 0.0, 0.0)])
                 if val > r[k][0]:
                     # the template centre's offset from the box centre, in metres (along the front, to the left),
                     # to a fraction of a pixel: a parabola through the peak and its neighbours
-                    g3 = v[:, k].reshape(3, 3)
+                    g3 = v.reshape(3, 3)
                     py, px = j // 3, j % 3
                     fx = _parabola_peak(g3[py, 0], g3[py, 1], g3[py, 2]) if px == 1 else 0.0
                     fy = _parabola_peak(g3[0, px], g3[1, px], g3[2, px]) if py == 1 else 0.0
