@@ -1,4 +1,4 @@
-"""Default embedder v5 and the category vote (helper-3): calibrated shadow test, speckle removed by area
+"""Default embedder v5 and the category vote: calibrated shadow test, speckle removed by area
 (thin rims stay), per-asset scores of the index, and the category vote of ``Library.search``."""
 
 from __future__ import annotations

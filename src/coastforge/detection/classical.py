@@ -28,7 +28,7 @@ from ..config import DetectConfig
 from ..frames import wrap_half_deg, yaw_from_direction_px
 from ..types import ClassMap, Detection, GeoImage
 from . import heading as hd
-from .piers import detect_piers, dominant_angles
+from .piers import detect_piers, dominant_angles, labels_in
 
 
 def _resize(a: np.ndarray, shape: tuple[int, int], nearest: bool = False) -> np.ndarray:
@@ -239,7 +239,10 @@ class ClassicalDetector:
         return keep[lbl]
 
     # ------------------------------------------------------------------------------------ main
-    def detect(self, image: GeoImage, class_map: ClassMap | None = None, seed: int = 0) -> list[Detection]:
+    def detect(self, image: GeoImage, class_map: ClassMap | None = None, seed: int = 0,
+               vehicles: bool = True) -> list[Detection]:
+        """Piers, boats, buoys and (``vehicles=False``: not) vehicles; see the module doc. The hybrid
+        detector takes its vehicles from the network and skips them here (speed)."""
         import cv2
 
         rgb_full = image.rgb
@@ -260,10 +263,11 @@ class ClassicalDetector:
         if water0.sum() * gsd * gsd >= self.config.min_water_area_m2:
             dets += self._water_objects(rgb, lab, water0, gsd, scale)
         afloat = self._afloat  # structures over water (boats, piers): no cars there
-        land_cm = None
-        if class_map is not None:
-            land_cm = _resize(class_map.ids, (wh, ww), nearest=True)
-        dets += self._vehicles(rgb, lab, water0, land_cm, gsd, scale, afloat)
+        if vehicles:
+            land_cm = None
+            if class_map is not None:
+                land_cm = _resize(class_map.ids, (wh, ww), nearest=True)
+            dets += self._vehicles(rgb, lab, water0, land_cm, gsd, scale, afloat)
         # heading on the full-resolution image (masks are in work pixels: rescale the boxes' masks)
         out = []
         for d in dets:
@@ -478,7 +482,7 @@ class ClassicalDetector:
         n, lbl = cv2.connectedComponents(nw, connectivity=4)
         far = dist_w > max(self.config.mainland_far_m, 6 * gsd)
         ids = np.unique(lbl[far & (lbl > 0)])
-        return np.isin(lbl, ids[ids > 0])
+        return labels_in(lbl, ids[ids > 0], n)
 
     def _land_labels(self, labels, land) -> set[int]:
         """Segments that run onto land (shore, quays) are not boats."""

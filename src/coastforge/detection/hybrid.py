@@ -66,8 +66,10 @@ class HybridDetector:
         from .learned import MAX_GSD_M, MIN_GSD_M
         from .nms import rotated_nms
 
-        classical = self.classical.detect(image, class_map, seed)
-        if not (MIN_GSD_M <= image.grid.gsd_m <= MAX_GSD_M):
+        in_range = MIN_GSD_M <= image.grid.gsd_m <= MAX_GSD_M
+        # in range, only the classical piers and boats are used: its vehicles are skipped (speed)
+        classical = self.classical.detect(image, class_map, seed, vehicles=not in_range)
+        if not in_range:
             return classical  # e.g. satellite ports at 10 m/px: outside what the network was trained on
         support = float(self.config.hybrid_support)
         floor = support if self.union and support > 0 else None

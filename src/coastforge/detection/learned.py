@@ -105,6 +105,8 @@ class LearnedDetector:
         ort = require("onnxruntime", "onnx", "the learned detect backend")
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = min(2, os.cpu_count() or 1)
+        # no busy-waiting between the tiles' runs: less CPU for the same outputs (other stages run beside)
+        opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
             self.session = ort.InferenceSession(str(p), opts, providers=["CPUExecutionProvider"])
         except Exception as exc:

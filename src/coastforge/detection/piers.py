@@ -15,6 +15,13 @@ from ..frames import wrap_half_deg, yaw_from_direction_px
 from ..types import Detection
 
 
+def labels_in(lab: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
+    """``np.isin(lab, ids)`` for labels in [0, n), by a lookup table (several times faster)."""
+    table = np.zeros(n, bool)
+    table[ids] = True
+    return table[lab]
+
+
 def dominant_angles(mask: np.ndarray, n_peaks: int = 4, min_share: float = 0.3) -> list[float]:
     """Dominant line directions (image angle in degrees, [0, 180), CCW from image-right with row up)
     of a binary mask, from the histogram of its edge orientations; each with its perpendicular."""
@@ -254,7 +261,7 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
     if finger_angles:  # a finger is part of a blob that touches a walkway (the others cannot hold one)
         n, lbl = cv2.connectedComponents(rest.astype(np.uint8), connectivity=8)
         touch = np.unique(lbl[near_walk & (lbl > 0)])
-        rest = np.isin(lbl, touch[touch > 0]) if len(touch) else np.zeros_like(rest)
+        rest = labels_in(lbl, touch[touch > 0], n) if len(touch) else np.zeros_like(rest)
     finger_union = np.zeros(structure.shape, bool)
     for a in finger_angles:
         fm = line_open(rest, a, fl, fw, clear_px=max(1, int(round(finger_clear_m / gsd_m)))) & ~finger_union
@@ -262,7 +269,7 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
             continue
         n, lbl = cv2.connectedComponents(fm.astype(np.uint8), connectivity=8)
         touch = np.unique(lbl[near_walk & (lbl > 0)])
-        keep = np.isin(lbl, touch[touch > 0])
+        keep = labels_in(lbl, touch[touch > 0], n)
         if keep.sum() >= fl:
             segs, kept = _segments(keep, a, fl * 0.9, "pier_finger", 1.0, 0.6)
             finger_union |= kept

@@ -80,16 +80,59 @@ SYM_BIG_TURN_CONTRAST = 1.25
 SYM_EDGE_CONTRAST = 1.4
 
 
-def _lab_window(rgb: np.ndarray, cx: float, cy: float, reach: float) -> tuple[np.ndarray, tuple[int, int]]:
-    """The Lab (float32, L 0-100) window of ``rgb`` within ``reach`` pixels of (cx, cy), and its origin."""
+def _to_lab(rgb: np.ndarray) -> np.ndarray:
     import cv2
 
+    return cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB)
+
+
+class LabCache:
+    """An RGB image whose Lab is converted block by block as ``_lab_window`` asks for it, each pixel
+    once: the checks of ``refine_boxes`` look at several overlapping windows around every box (speed).
+    The conversion is per pixel, so the windows are the same as converting each on its own. Pass it
+    wherever these functions take ``rgb`` (read-only views are returned: do not write into them)."""
+
+    BLOCK = 32
+    MAX_PIXELS = 40_000_000  # larger images (a 0.5 GB float cache) convert each window on its own
+
+    def __init__(self, rgb: np.ndarray):
+        self.rgb = rgb
+        self.shape = rgb.shape
+        h, w = rgb.shape[:2]
+        self.lab = np.empty((h, w, 3), np.float32) if h * w <= self.MAX_PIXELS else None
+        b = self.BLOCK
+        self.done = np.zeros((-(-h // b), -(-w // b)), bool)
+
+    def window(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        if self.lab is None:
+            return _to_lab(self.rgb[r0:r1, c0:c1])
+        b = self.BLOCK
+        h, w = self.shape[:2]
+        br0, bc0 = r0 // b, c0 // b
+        todo = ~self.done[br0:-(-r1 // b), bc0:-(-c1 // b)]
+        for i in np.nonzero(todo.any(1))[0]:  # each row of blocks: from its first to its last missing one
+            js = np.nonzero(todo[i])[0]
+            ra, rb = (br0 + i) * b, min(h, (br0 + i + 1) * b)
+            ca, cb = (bc0 + js[0]) * b, min(w, (bc0 + js[-1] + 1) * b)
+            self.lab[ra:rb, ca:cb] = _to_lab(self.rgb[ra:rb, ca:cb])
+            self.done[br0 + i, bc0 + js[0]:bc0 + js[-1] + 1] = True
+        v = self.lab[r0:r1, c0:c1]
+        v.flags.writeable = False
+        return v
+
+
+def _lab_window(rgb: np.ndarray | LabCache, cx: float, cy: float,
+                reach: float) -> tuple[np.ndarray, tuple[int, int]]:
+    """The Lab (float32, L 0-100) window of ``rgb`` (or of a ``LabCache``) within ``reach`` pixels of
+    (cx, cy), and its origin."""
     h, w = rgb.shape[:2]
     c0, r0 = max(0, int(cx - reach)), max(0, int(cy - reach))
     c1, r1 = min(w, int(cx + reach) + 2), min(h, int(cy + reach) + 2)
     if c1 - c0 < 2 or r1 - r0 < 2:
         return np.zeros((2, 2, 3), np.float32), (c0, r0)
-    return cv2.cvtColor(rgb[r0:r1, c0:c1].astype(np.float32) / 255.0, cv2.COLOR_RGB2LAB), (c0, r0)
+    if isinstance(rgb, LabCache):
+        return rgb.window(r0, r1, c0, c1), (c0, r0)
+    return _to_lab(rgb[r0:r1, c0:c1]), (c0, r0)
 
 
 def _crop(win: tuple[np.ndarray, tuple[int, int]], cx: float, cy: float, yaw_deg: float, half_u: float,
@@ -103,12 +146,12 @@ def _crop(win: tuple[np.ndarray, tuple[int, int]], cx: float, cy: float, yaw_deg
     sv = scale if scale_v is None else scale_v
     nu, nv = int(math.ceil(2 * half_u * scale)), int(math.ceil(2 * half_v * sv))
     r = math.radians(yaw_deg)
-    f = np.array([math.cos(r), -math.sin(r)])  # forward in (col, row)
-    lft = np.array([-math.sin(r), -math.cos(r)])  # left of forward in (col, row)
+    cr, sr = math.cos(r), math.sin(r)  # forward (cr, -sr) and its left (-sr, -cr) in (col, row)
+    a = np.array([[cr / scale, sr / sv], [-sr / scale, cr / sv]])  # 2x2: d(col,row)/d(j,i) (forward, -left)
     c = np.array([cx - 0.5 - c0, cy - 0.5 - r0])  # continuous image coords → window pixel index
-    a = np.stack([f / scale, -lft / sv], 1)  # 2x2: d(col,row)/d(j,i)
-    o = c - a @ np.array([(nu - 1) / 2.0, (nv - 1) / 2.0])
-    m = np.hstack([a, o[:, None]]).astype(np.float64)
+    m = np.empty((2, 3))
+    m[:, :2] = a
+    m[:, 2] = c - a @ np.array([(nu - 1) / 2.0, (nv - 1) / 2.0])
     return cv2.warpAffine(lab, m, (nu, nv), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_REFLECT)
 
@@ -124,6 +167,29 @@ def _between(mask: np.ndarray, axis: int) -> np.ndarray:
     return any_ & (idx >= first) & (idx <= last)
 
 
+def _sq_dist(a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``((a - m) ** 2).sum(-1)`` for colours ``a`` (..., 3) and one colour ``m``, channel by channel:
+    the same values, several times faster than numpy's reduction over a short last axis (speed)."""
+    m = np.asarray(m)
+    t = a[..., 0] - m[0]
+    acc = t * t
+    for c in range(1, a.shape[-1]):
+        t = a[..., c] - m[c]
+        acc += t * t
+    return acc
+
+
+def _median0(a: np.ndarray) -> np.ndarray:
+    """``np.median(a, 0)`` of a non-empty (n, c) array, the same values without its overhead (speed:
+    called in every k-means step of ``background_modes``)."""
+    n = a.shape[0]
+    h = n // 2
+    if n % 2:
+        return np.partition(a, h, axis=0)[h]
+    p = np.partition(a, (h - 1, h), axis=0)
+    return (p[h - 1] + p[h]) / 2
+
+
 def background_modes(ring: np.ndarray, core: np.ndarray, k: int = 3, iters: int = 6,
                      min_share: float = 0.12, max_in_core: float = 0.3,
                      tol: float = 8.0) -> list[tuple[np.ndarray, float]]:
@@ -137,20 +203,25 @@ def background_modes(ring: np.ndarray, core: np.ndarray, k: int = 3, iters: int 
     if len(x) < 10:
         return []
     centres = np.quantile(x, np.linspace(0.15, 0.85, k), axis=0)  # spread along all channels
+    prev = None
     for _ in range(iters):
-        lab = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(-1), 1)
+        lab = np.argmin(np.stack([_sq_dist(x, m) for m in centres], 1), 1)
+        if prev is not None and np.array_equal(lab, prev):
+            break  # converged: the same members give the same medians from here on
+        prev = lab
         for j in range(k):
             sel = x[lab == j]
             if len(sel):
-                centres[j] = np.median(sel, 0)
-    lab = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(-1), 1)
+                centres[j] = _median0(sel)
+    else:
+        lab = np.argmin(np.stack([_sq_dist(x, m) for m in centres], 1), 1)
     c = core.reshape(-1, 3)
     out = []
     for j in range(k):
         share = float((lab == j).mean())
         if share < min_share:
             continue
-        if len(c) and (np.sqrt(((c - centres[j]) ** 2).sum(-1)) < tol).mean() > max_in_core:
+        if len(c) and (np.sqrt(_sq_dist(c, centres[j])) < tol).mean() > max_in_core:
             continue
         out.append((centres[j].copy(), share))
     return sorted(out, key=lambda m: -m[1])
@@ -171,21 +242,37 @@ def _extents(mask: np.ndarray) -> tuple[float, float, float, float] | None:
     return jj[0] - 0.5, jj[-1] + 0.5, ii[0] - 0.5, ii[-1] + 0.5
 
 
+def _mirror_rows(n_rows: int, ci: float, half_v: int, shifts: np.ndarray):
+    """The row pairs ``_mirror_cost`` compares in a crop of ``n_rows`` rows: (rows above, rows below)
+    for each distinct mirror row that fits, which of those fit, and each shift's distinct row. The
+    mirror rows ``ci + shift`` are rounded, so half-sample centres give each row twice: it is
+    compared once."""
+    rows, inv = np.unique(np.round(ci + shifts).astype(int), return_inverse=True)
+    k = np.arange(1, half_v + 1)
+    up, dn = rows[:, None] - k[None], rows[:, None] + k[None]
+    ok = (up[:, -1] >= 0) & (dn[:, -1] < n_rows)
+    return up[ok], dn[ok], ok, inv.reshape(-1)
+
+
+def _mirror_cost_rows(crop: np.ndarray, pairs) -> np.ndarray:
+    """``_mirror_cost`` with the row pairs from ``_mirror_rows``."""
+    up, dn, ok, inv = pairs
+    out = np.full(len(ok), np.inf)
+    if len(up):
+        d = np.take(crop, up, axis=0)  # (rows, k, columns, 3)
+        np.subtract(d, np.take(crop, dn, axis=0), out=d)
+        np.abs(d, out=d)
+        out[ok] = d.reshape(d.shape[0], -1).mean(1)
+    return out[inv]
+
+
 def _mirror_cost(crop: np.ndarray, ci: float, half_v: int, shifts: np.ndarray) -> np.ndarray:
     """For each lateral shift (samples), the mean colour difference between the crop's rows above and
     below the row ``ci + shift``, ``half_v`` rows each side."""
-    k = np.arange(1, half_v + 1)
-    c = np.round(ci + shifts).astype(int)[:, None]
-    up, dn = c - k[None], c + k[None]
-    ok = (up[:, -1] >= 0) & (dn[:, -1] < crop.shape[0])
-    out = np.full(len(shifts), np.inf)
-    if ok.any():
-        d = np.abs(crop[up[ok]] - crop[dn[ok]])  # (shifts, k, columns, 3)
-        out[ok] = d.reshape(d.shape[0], -1).mean(1)
-    return out
+    return _mirror_cost_rows(crop, _mirror_rows(crop.shape[0], ci, half_v, shifts))
 
 
-def symmetry_axis(rgb: np.ndarray, det: Detection,
+def symmetry_axis(rgb: np.ndarray | LabCache, det: Detection,
                   max_deg: float = SYM_MAX_DEG) -> tuple[float, float, float] | None:
     """The long axis as the object's mirror axis: boats and vehicles are symmetric about it seen from
     above, shadows and neighbours are not. Returns (yaw correction in degrees, lateral offset of the
@@ -202,20 +289,27 @@ def symmetry_axis(rgb: np.ndarray, det: Detection,
     half_v = (hv + max_t + 2) / scale
     shifts = np.arange(-max_t, max_t + 1)
     win = _lab_window(rgb, det.cx_px, det.cy_px, math.hypot(half_u, half_v) + 3)
+    pairs = None  # the crops' size does not depend on the angle: their row pairs are found once
+    done: dict[float, tuple[float, float]] = {}  # the fine search starts at the coarse optimum
 
-    def cost(delta: float, sh: np.ndarray = shifts) -> tuple[float, float]:
+    def cost(delta: float) -> tuple[float, float]:
+        nonlocal pairs
+        if delta in done:
+            return done[delta]
         crop = _crop(win, det.cx_px, det.cy_px, det.yaw_deg + delta, half_u, half_v, su, scale)
-        ci = (crop.shape[0] - 1) / 2.0
-        c = _mirror_cost(crop, ci, hv, sh)
+        if pairs is None:
+            pairs = _mirror_rows(crop.shape[0], (crop.shape[0] - 1) / 2.0, hv, shifts)
+        c = _mirror_cost_rows(crop, pairs)
         n = int(np.argmin(c))
-        return float(c[n]), float(sh[n])
+        done[delta] = float(c[n]), float(shifts[n])
+        return done[delta]
 
     step = 0.5
     coarse = np.arange(-max_deg, max_deg + 1e-6, 2.0)
-    cs = np.array([cost(d)[0] for d in coarse])
+    cs = np.array([cost(float(d))[0] for d in coarse])
     b = int(np.argmin(cs))
     fine = coarse[b] + np.arange(-1.5, 1.51, step)
-    fs = [cost(d) for d in fine]
+    fs = [cost(float(d)) for d in fine]
     vals = np.array([f[0] for f in fs])
     n = int(np.argmin(vals))
     best = float(fine[n])
@@ -235,6 +329,8 @@ def silhouette(rgb: np.ndarray, det: Detection, gsd_m: float, trace: list | None
     string when there is no clean silhouette."""
     import cv2
     from scipy import ndimage as ndi
+
+    from .piers import labels_in
 
     L, W = det.length_px, det.width_px
     scale = max(1.0, min(8.0, _MIN_UP_PX / max(W, 1.0)))
@@ -256,7 +352,7 @@ def silhouette(rgb: np.ndarray, det: Detection, gsd_m: float, trace: list | None
         return "no background around the box"
     modes = [m for m, _share in found]
     # distance to the nearest background mode (water, pier deck, pavement, grass...)
-    dists = np.stack([np.sqrt(((crop - m) ** 2).sum(-1)) for m in modes])
+    dists = np.stack([np.sqrt(_sq_dist(crop, m)) for m in modes])
     dist = dists.min(0)
     main_bg = np.argmin(dists, 0) == 0  # the commonest background (water for a boat, pavement for a car)
     spread = float(np.percentile(dist[ring], 50))  # the background's own texture
@@ -293,7 +389,7 @@ def silhouette(rgb: np.ndarray, det: Detection, gsd_m: float, trace: list | None
         return "nothing at the core"
     # a silhouette end is trusted when the commonest background or a shadow lies just beyond it; a
     # part coloured like a rarer one (a teak deck like the pier) may have been cut off there
-    return np.isin(lab_cc, hit), scale, cj, ci, main_bg | shadow
+    return labels_in(lab_cc, hit, n + 1), scale, cj, ci, main_bg | shadow
 
 
 def core_evidence(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, float]:
@@ -317,7 +413,7 @@ def core_evidence(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
     if not found or not core.any():
         return {"contrast": 0.0, "shadow": 1.0, "water": 1.0}
     modes = [m for m, _ in found]
-    dist = np.stack([np.sqrt(((crop - m) ** 2).sum(-1)) for m in modes]).min(0)
+    dist = np.stack([np.sqrt(_sq_dist(crop, m)) for m in modes]).min(0)
     spread = max(2.0, float(np.percentile(dist[ring], 50)))
     shadow = np.zeros(dist.shape, bool)
     for m in modes:
@@ -325,7 +421,7 @@ def core_evidence(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
         ab_dev = np.hypot(crop[..., 1] - m[1] * ratio, crop[..., 2] - m[2] * ratio)
         shadow |= (crop[..., 0] < m[0] - 3.0 * spread) & (ab_dev < max(6.0, 1.5 * spread))
     # the share of the core coloured like the water around the box (its ring's median colour)
-    water = float((np.sqrt(((crop[core] - np.median(crop[ring], 0)) ** 2).sum(-1)) < CORE_WATER_DE).mean())
+    water = float((np.sqrt(_sq_dist(crop[core], np.median(crop[ring], 0))) < CORE_WATER_DE).mean())
     return {"contrast": float(np.median(dist[core])) / spread, "shadow": float(shadow[core].mean()),
             "water": water}
 
@@ -433,7 +529,7 @@ def boat_ends(rgb: np.ndarray, det: Detection, frac: float = SMALL_BOAT_EDGE) ->
     band = V[:, 0] <= 0.3 * W
     if not found or not band.any():
         return None
-    dist = np.sqrt(((crop - found[0][0]) ** 2).sum(-1))
+    dist = np.sqrt(_sq_dist(crop, found[0][0]))
     prof = np.median(dist[band], 0)
     water = float(np.median(dist[ring]))
     ends = []
@@ -487,7 +583,7 @@ def buoy_features(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
     yy, xx = np.mgrid[:n0, :n1]
     rr = np.hypot(yy - (n0 - 1) / 2.0, xx - (n1 - 1) / 2.0) * sample
     bg = np.median(crop[rr > 1.2], 0)
-    dist = np.sqrt(((crop - bg) ** 2).sum(-1))
+    dist = np.sqrt(_sq_dist(crop, bg))
     peak = float(np.percentile(dist[rr < 0.6], 95))
     blob = (dist > 0.5 * peak) & (rr < 1.0)
     ys, xs = np.nonzero(blob)
@@ -567,6 +663,7 @@ def refine_boxes(rgb: np.ndarray, detections: list[Detection], gsd_m: float,
     vehicles shorter than ``VEHICLE_MIN_M`` dropped; unclear boat axes aligned with their row
     (``align_with_neighbours``). ``axis=False`` keeps the detector's axes (see
     ``coastforge.detection.detect``). See the module doc."""
+    rgb = rgb if isinstance(rgb, LabCache) else LabCache(rgb)  # each pixel's Lab computed once
     out, clear = [], []
     for d in detections:
         if d.category == "buoy" and not is_buoy(rgb, d, gsd_m):
