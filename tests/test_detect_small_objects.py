@@ -7,6 +7,7 @@ import math
 
 import cv2
 import numpy as np
+import pytest
 
 from coastforge.detection.refine import boat_ends, buoy_features, is_buoy, is_glint, refine_box
 from coastforge.frames import box_corners_px
@@ -130,3 +131,24 @@ def test_a_box_whose_middle_is_mostly_water_is_no_boat():
     hull = Detection("boat", 0.5, 120.0, 50.0, 36.0, 12.0, 0.0)
     assert core_evidence(rgb, wake, 0.2)["water"] > 0.5 > core_evidence(rgb, hull, 0.2)["water"]
     assert is_dark_water(rgb, wake, 0.2) and not is_dark_water(rgb, hull, 0.2)
+
+
+@pytest.mark.parametrize("features, expected", [
+    # passes the shape checks, no glint
+    (dict(peak=30.0, area=0.4, aspect=1.1, ring_p10=-2.0, ring_mean=-0.5, tint=0.2), True),
+    # a faint, 5 px buoy of the synthetic beach (peak and area just short, elongated by blur) with a clear
+    # shadow in its own colour: kept
+    (dict(peak=22.8, area=0.455, aspect=2.03, ring_p10=-6.07, ring_mean=-2.39, tint=0.40), True),
+    (dict(peak=23.9, area=0.248, aspect=1.27, ring_p10=-3.56, ring_mean=-1.63, tint=0.19), True),
+    # the same shape with the water's tint, or a brighter ring (a glint's ripples): dropped
+    (dict(peak=22.8, area=0.455, aspect=2.03, ring_p10=-6.07, ring_mean=-2.39, tint=0.02), False),
+    (dict(peak=22.8, area=0.455, aspect=2.03, ring_p10=-0.8, ring_mean=0.9, tint=0.40), False),
+    # far smaller than a buoy (a speck beside its shadow): dropped
+    (dict(peak=30.0, area=0.12, aspect=2.0, ring_p10=-7.3, ring_mean=-5.5, tint=0.24), False),
+])
+def test_a_faint_buoy_with_a_clear_shadow_of_its_own_colour_is_kept(monkeypatch, features, expected):
+    from coastforge.detection import refine
+
+    monkeypatch.setattr(refine, "buoy_features", lambda *a: features)
+    det = Detection("buoy", 0.7, 10.0, 10.0, 5.0, 5.0, 0.0)
+    assert refine.is_buoy(np.zeros((20, 20, 3), np.uint8), det, GSD) is expected

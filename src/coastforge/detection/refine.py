@@ -46,6 +46,10 @@ BUOY_MAX_ASPECT, BUOY_MIN_AREA_M2, BUOY_MIN_PEAK = 1.4, 0.25, 24.0  # see ``is_b
 # 10th percentile must get (Lab L) and how close to the water's chromaticity a glint's colour stays
 GLINT_RING_M, GLINT_MAX_SHADOW, GLINT_MAX_TINT = (0.6, 0.95), -1.4, 0.1
 DARK_WATER_SHADOW, DARK_WATER_CONTRAST = 0.8, 0.8  # see ``is_dark_water``
+# ... unless its ring is clearly darker (mean, 10th percentile) and its colour its own (tint), when 0.8 of
+# the area and peak will do (synthetic seeds 0-2: 2 of the 3 true buoys the shape checks dropped kept,
+# none of 99 glints; every such glint was smaller, or had a brighter ring or the water's tint)
+BUOY_SURE_SHAPE, BUOY_SURE_RING, BUOY_SURE_TINT = 0.8, (-1.0, -3.0), 0.1
 # wakes (``drop_wakes``): a boat box in line behind a boat (axes within WAKE_MAX_DEG, centre within half
 # its width of the boat's axis, at most WAKE_GAP_M or half the boat's length beyond its stern) whose
 # core is partly water (>= WAKE_MIN_WATER) and far less contrasted than the boat's (WAKE_REL_CONTRAST)
@@ -622,8 +626,13 @@ def is_buoy(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
     the glints left are told apart by their surroundings and colour (``is_glint``: 0.2 m/px, seeds 0
     and 1, the last 6 of 6 dropped, no buoy)."""
     f = buoy_features(rgb, det, gsd_m)
-    return (f["aspect"] <= BUOY_MAX_ASPECT and f["area"] >= BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_MIN_PEAK
-            and not is_glint(f))
+    if f["aspect"] <= BUOY_MAX_ASPECT and f["area"] >= BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_MIN_PEAK:
+        return not is_glint(f)
+    # a float casting a clear shadow in its own colour (far from any glint) may be a little smaller,
+    # fainter or less round than the shape checks want: at 0.2 m/px a 1 m buoy is 5 px, blurred
+    return (f["area"] >= BUOY_SURE_SHAPE * BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_SURE_SHAPE * BUOY_MIN_PEAK
+            and f["ring_mean"] <= BUOY_SURE_RING[0] and f["ring_p10"] <= BUOY_SURE_RING[1]
+            and f["tint"] >= BUOY_SURE_TINT)
 
 
 def is_dark_water(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
