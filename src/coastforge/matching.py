@@ -190,21 +190,20 @@ def heading_prior(config: MatchConfig, det: Detection) -> float:
     return config.heading_prior_weight * _logit(det.heading_confidence) * _pixel_scaling(config, det)
 
 
-_MEAN_VIEW_CACHE: dict = {}
-
-
 def mean_view(library, asset_id: str, background: str) -> tuple[np.ndarray, float]:
     """The mean of the asset's stored views on ``background`` (lightings, repainted copies; front at +x) and
-    its metres per pixel, cached: what every paint shares (dark glass, the cabin's outline) stays."""
-    key = (id(library), asset_id, background)
-    if key not in _MEAN_VIEW_CACHE:
+    its metres per pixel: what every paint shares (dark glass, the cabin's outline) stays. Cached with the
+    library's shape matcher."""
+    cache = shape_matcher(library)._mean_views
+    key = (asset_id, background)
+    if key not in cache:
         if hasattr(library, "views_on"):
             views = library.views_on(asset_id, background)
             gsd = float(library.asset(asset_id).view_gsd_m)
-            _MEAN_VIEW_CACHE[key] = (np.mean([v.astype(np.float32) for v in views], axis=0), gsd)
+            cache[key] = (np.mean([v.astype(np.float32) for v in views], axis=0), gsd)
         else:
-            _MEAN_VIEW_CACHE[key] = asset_top_view(library, asset_id, background)
-    return _MEAN_VIEW_CACHE[key]
+            cache[key] = asset_top_view(library, asset_id, background)
+    return cache[key]
 
 
 def match_detections(image: GeoImage, dets: list[Detection], library, config: MatchConfig, seed: int,
@@ -382,6 +381,7 @@ class ShapeMatcher:
         self.library = library
         self._views: dict = {}
         self._tpl: dict = {}
+        self._mean_views: dict = {}  # see ``mean_view``
 
     @staticmethod
     def work_gsd(image_gsd: float, length_m: float, max_len_px: int) -> float:

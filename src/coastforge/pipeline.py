@@ -372,7 +372,8 @@ def _side_warm_up() -> None:
         pass
 
 
-def _side_clean(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> None:
+def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> None:
+    """The inpainted image (``_clean``) as a PNG; a module-level function so a side process can run it."""
     from .fsio import write_png
 
     write_png(path, _clean(image, dets, class_map, seed))
@@ -424,15 +425,14 @@ def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_ma
     """detections.json now; the cleaned image (transient objects removed: an output only, no later stage
     reads it) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
     from .detection import detections_to_json
-    from .fsio import write_png
     from .segmentation.outputs import write_segmentation
 
     g = image.grid
     atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
     if side is not None:
-        bg.submit("cleaned", side.run, _side_clean, out / "cleaned.png", image, dets, class_map, seed)
+        bg.submit("cleaned", side.run, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
     else:
-        bg.submit("cleaned", lambda: write_png(out / "cleaned.png", _clean(image, dets, class_map, seed)))
+        bg.submit("cleaned", _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
     bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, image, config.segment)
 
 

@@ -943,6 +943,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     # The terrain plots (matplotlib, the only user of it here) are built in a second thread while the
     # top-down render and the other sections (mostly OpenCV/NumPy, which release the GIL) are built here.
     from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     if side is not None:  # matplotlib holds the GIL: in another process it does not slow the render here
         terrain_part = side(_guard, "terrain", _terrain_section,
@@ -968,7 +969,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     say("terrain plots")
     try:
         parts["terrain"] = terrain_part.result()
-    except Exception:  # noqa: BLE001 - the other process died (BrokenProcessPool): draw the plots here
+    except BrokenProcessPool:  # the side process died (killed for memory, say): draw the plots here
         parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
     say("piers and vegetation")
     parts["piers"] = _guard("piers", _piers_section, scene, base)

@@ -219,10 +219,7 @@ class LearnedSegmenter:
             wc, hc, small = W, H, rgb
         F = compute_features(small, gsd * W / wc)
         water, open_water = detect_water(F, cfg, return_open=True)
-        if land_p.shape[:2] != (hc, wc):
-            ids_c = _upsample_argmax(land_p, hc, wc)
-        else:
-            ids_c = land_p.argmax(2).astype(np.uint8)
+        ids_c = _land_ids_at(land_p, hc, wc)
         seeds = land_seeds(F, water, cfg.rocks_shore_m)
         m = seeds >= 0
         self.last_agreement = float((ids_c[m] == seeds[m]).mean()) if m.sum() >= 200 else 1.0
@@ -255,10 +252,7 @@ class LearnedSegmenter:
             return None
         hc, wc = water_c.shape
         wn_c = cv2.resize(wn.astype(np.uint8), (wc, hc), interpolation=cv2.INTER_NEAREST).astype(bool)
-        if land_p.shape[:2] != (hc, wc):
-            ids_c = _upsample_argmax(land_p, hc, wc)
-        else:
-            ids_c = land_p.argmax(2).astype(np.uint8)
+        ids_c = _land_ids_at(land_p, hc, wc)
         seeds = land_seeds(F, wn_c, cfg.rocks_shore_m)
         m = seeds >= 0
         if m.sum() < 200:
@@ -293,6 +287,13 @@ def _merge_specks(p: np.ndarray, min_px: float) -> None:
     if ch.any():
         p[ch] = 0.0
         p[ch, merged[ch]] = 1.0
+
+
+def _land_ids_at(land_p: np.ndarray, h: int, w: int) -> np.ndarray:
+    """The most likely land class per pixel of an h x w grid (``land_p``: land probabilities, any grid)."""
+    if land_p.shape[:2] != (h, w):
+        return _upsample_argmax(land_p, h, w)
+    return land_p.argmax(2).astype(np.uint8)
 
 
 def _upsample_argmax(p: np.ndarray, H: int, W: int, rows: int = 512) -> np.ndarray:
