@@ -101,10 +101,16 @@ def test_side_process_gives_the_same_cleaned_image_and_report(level, tmp_path, m
     b = run_generate(replace(_request(level, tmp_path / "side"), report=True, side_process=True), Config())
     assert len(started) == 1 and started[0] is not None  # only the second run asked for it, and got it
     assert np.array_equal(read_png(a.out_dir / "cleaned.png"), read_png(b.out_dir / "cleaned.png"))
+    # the classical detections and the matching ran in the child: the same scene
+    sa, sb = (json.loads((r.out_dir / "scene.json").read_text()) for r in (a, b))
+    assert sa["objects"] and sa["objects"] == sb["objects"]
+    assert (json.loads((a.out_dir / "detections.json").read_text())["detections"]
+            == json.loads((b.out_dir / "detections.json").read_text())["detections"])
     html_a, html_b = (r.report_path.read_text(encoding="utf-8") for r in (a, b))
     for html in (html_a, html_b):  # the terrain plots came back from the child
         assert "Height map with land and bathymetry" in html
         assert SECTION_FAILED not in html
+        assert "Generated scene rendered from above" in html  # from the terrain layer rendered ahead
 
 
 def test_work_for_a_dead_side_process_is_redone_here():

@@ -184,6 +184,11 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
 def _touches_land(scene: Scene, poly) -> bool:
     grid = scene.grid
     minx, miny, maxx, maxy = poly.bounds
+    # no land in the pixels of the bounding box (most segments of a marina stand in open water): no
+    # sample inside the polygon can find any, so the point-in-polygon test is skipped
+    box = _box_pixels(scene, minx, miny, maxx, maxy)
+    if box is not None and not box.any():
+        return False
     xs = np.linspace(minx, maxx, max(3, int((maxx - minx) / grid.gsd_m) + 1))
     ys = np.linspace(miny, maxy, max(3, int((maxy - miny) / grid.gsd_m) + 1))
     gx, gy = np.meshgrid(xs, ys)
@@ -200,6 +205,20 @@ def _touches_land(scene: Scene, poly) -> bool:
     if scene.height is not None:
         return bool(np.any(scene.height[ri, ci] > scene.water_level_m))
     return False
+
+
+def _box_pixels(scene: Scene, minx: float, miny: float, maxx: float, maxy: float) -> np.ndarray | None:
+    """Is each pixel of the window spanning the box land (the pixels ``_touches_land`` samples, clamped the
+    same way)? None when the scene has no raster to tell."""
+    grid = scene.grid
+    cols, rows = grid.to_pixel(np.array([minx, maxx]), np.array([miny, maxy]))
+    c0, c1 = np.clip(np.floor(np.sort(cols)).astype(int), 0, grid.width_px - 1)
+    r0, r1 = np.clip(np.floor(np.sort(rows)).astype(int), 0, grid.height_px - 1)
+    if scene.classes is not None:
+        return scene.classes[r0:r1 + 1, c0:c1 + 1] != WATER
+    if scene.height is not None:
+        return scene.height[r0:r1 + 1, c0:c1 + 1] > scene.water_level_m
+    return None
 
 
 def evaluate_scenes(truth: Scene, pred: Scene) -> dict:

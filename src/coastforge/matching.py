@@ -585,23 +585,16 @@ def _parabola_peak(a: float, b: float, c: float) -> float:
 
 
 def _silhouette(library, asset_id: str, n: int, gsd: float, view: np.ndarray) -> np.ndarray:
-    """The asset's footprint seen from above, aligned with its views (n x n at ``gsd``), float32 0/1."""
-    import cv2
-
+    """The asset's footprint seen from above, aligned with its views (n x n at ``gsd``), float32 0/1: the
+    library's stored mask, else rasterised from the mesh, else (thumbnail-only assets) segmented from the view."""
+    stored = library.silhouette(asset_id) if hasattr(library, "silhouette") else None
+    if stored is not None and stored.shape == (n, n):
+        return stored
     a = library.asset(asset_id)
-    mask = np.zeros((n, n), np.uint8)
     if getattr(a, "mesh_path", None) is not None:
-        mesh = library.mesh(asset_id)
-        v = np.asarray(mesh.vertices)
-        b = np.asarray(mesh.bounds)
-        cx, cy = 0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1])
-        col = (v[:, 0] - cx) / gsd + n / 2.0 - 0.5
-        row = n / 2.0 - (v[:, 1] - cy) / gsd - 0.5
-        pts = np.round(np.stack([col, row], 1) * 16).astype(np.int32)
-        for tri in pts[np.asarray(mesh.faces)]:  # one by one: fillPoly would cancel overlapping faces
-            cv2.fillConvexPoly(mask, tri, 1, lineType=cv2.LINE_8, shift=4)
-    else:  # thumbnail-only asset: segment the view (no shadows in views)
-        from .assets.embed import object_mask
+        from .assets.meshes import footprint_mask
 
-        mask = object_mask(view).astype(np.uint8)
-    return mask.astype(np.float32)
+        return footprint_mask(library.mesh(asset_id), n, gsd).astype(np.float32)
+    from .assets.embed import object_mask  # thumbnail-only asset: no shadows in its views
+
+    return object_mask(view).astype(np.float32)

@@ -140,8 +140,21 @@ class LandProbe:
     def end_touches(self, box: "PierBox", end: np.ndarray, tol_m: float) -> bool:
         """Does the end edge of ``box`` at ``end`` come within ``tol_m`` of land (its centre or a corner)? A
         structure called grounded must really touch the shore, as the evaluation checks it."""
+        return bool(self.ends_touch(box, np.asarray(end, float)[None, :], tol_m)[0])
+
+    def ends_touch(self, box: "PierBox", ends: np.ndarray, tol_m: float) -> np.ndarray:
+        """``end_touches`` for many candidate ends (k, 2) at once: one gather for every step of a ray."""
+        g = self.grid
         side = np.array([-box.axis[1], box.axis[0]]) * (box.width_m / 2)
-        return any(self.land_within(q, tol_m) for q in (end, end + side, end - side))
+        pts = np.concatenate([ends, ends + side, ends - side])  # (3k, 2)
+        col, row = g.to_pixel(pts[:, 0], pts[:, 1])
+        dy, dx = self._disc(max(1, int(np.ceil(tol_m / g.gsd_m))))
+        r = np.floor(np.asarray(row)).astype(int)[:, None] + dy[None, :]
+        c = np.floor(np.asarray(col)).astype(int)[:, None] + dx[None, :]
+        inside = (r >= 0) & (r < g.height_px) & (c >= 0) & (c < g.width_px)
+        hit = np.zeros(r.shape, bool)
+        hit[inside] = self.land[r[inside], c[inside]] > 0
+        return hit.any(axis=1).reshape(3, len(ends)).any(axis=0)
 
 
 def detections_to_boxes(dets: list[Detection], grid: Grid) -> list[PierBox]:
@@ -185,10 +198,9 @@ def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float
             pi, bi = tree.query(pts, predicate="within")
             hit_box[pi[bi != i]] = True
             found = None
-            for k in range(len(ks)):
-                if hit_box[k] or probe.end_touches(b, qs[k], LAND_TOUCH_M):
-                    found = qs[k] + sign * u * min(0.5, step)  # a little overlap so the parts touch
-                    break
+            stop = np.flatnonzero(hit_box | probe.ends_touch(b, qs, LAND_TOUCH_M))
+            if len(stop):
+                found = qs[stop[0]] + sign * u * min(0.5, step)  # a little overlap so the parts touch
             if found is None:
                 new_ends.append(end)
             else:

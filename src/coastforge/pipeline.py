@@ -186,6 +186,9 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     out = prepare_output_dir(req.out, req.overwrite)
     timer = _Timer(progress)
     seed = config.seed
+    import threading
+
+    threading.Thread(target=_warm_imports, name="coastforge-imports", daemon=True).start()
     with timer.stage("read"):
         image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
         grid = image.grid
@@ -214,20 +217,37 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     # vegetation): the library loads while segmentation and detection run; matching (it needs the library
     # and the detections, not the terrain) runs beside terrain and piers; the cleaned image is only an
     # output; every side raster is written as soon as its stage is done.
-    with _Background() as bg:
+    with _Background(workers=4) as bg:
         bg.submit("library", _load_library, req.library)
         with timer.stage("segment"):
             class_map = segment(image, config.segment, seed=seed)
         with timer.stage("detect"):
-            dets = detect(image, config.detect, class_map=class_map, seed=seed)
+            opts = {}
+            if side is not None and config.detect.backend == "hybrid":  # its classical half runs in the side process
+                from .detection.hybrid import classical_part
+
+                opts["classical_dets"] = side.submit(classical_part, image, class_map, config.detect, seed)
+            if side is not None:  # then the side process loads the library its matching will need
+                def side_library():
+                    bg.result("library")  # built first (a first run builds the starter kit)
+                    side.submit(_preload_library, req.library)
+
+                bg.submit("side_library", side_library)
+            dets = detect(image, config.detect, class_map=class_map, seed=seed, **opts)
         with timer.stage("clean"):
             class_map = fill_under_objects(class_map, dets)
-        bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed))
+        if side is not None:  # matching is mostly Python: in the side process it leaves the GIL to the chain
+            bg.result("library")  # the side process loads the library only once this one has it (built)
+            bg.submit("match", side.run, _match_job, req.library, image, dets, config.match, seed)
+        else:
+            bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed))
         _write_segment_outputs(bg, out, image, class_map, dets, config, seed, side)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
             height: HeightMap = terrain.height
         _write_terrain_outputs(bg, out, terrain)
+        if req.report:  # the report's render from above: its terrain now, while the chain waits for matching
+            bg.submit("report_terrain", _report_terrain, class_map.ids, height.z_m, grid, seed)
         with timer.stage("library"):  # the time the chain waited for the library, not its load time
             library = bg.result("library")
         with timer.stage("piers"):
@@ -243,6 +263,9 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
         with timer.stage("vegetation"):
             veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library), objects, config.vegetation,
                           seed)
+        if req.report:  # ... and the meshes it shows (loading them holds the GIL: not beside the stages above)
+            plants = veg.vegetation.asset_id if veg.vegetation is not None else ()
+            bg.submit("report_meshes", _load_meshes, library, [o.asset_id for o in objects] + [str(a) for a in plants])
         with timer.stage("write"):
             scene = write_scene_files(
                 bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
@@ -266,7 +289,29 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
         scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
         scene_path = save_scene(scene, out, rasters=False)
     return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports,
-                           scene=scene, image=image.rgb, side=side)
+                           scene=scene, image=image.rgb, side=side, library=library,
+                           top_terrain=bg.result("report_terrain") if req.report else None)
+
+
+def _report_terrain(ids: np.ndarray, z_m: np.ndarray, grid, seed: int):
+    """The terrain layer of the report's render from above, or None (the report then renders it itself)."""
+    try:
+        from .render import scene_terrain_layer
+        from .report import top_gsd
+
+        return scene_terrain_layer(ids.astype(np.uint8), z_m.astype(np.float32), grid.extent_m, 0.0,
+                                   top_gsd(grid.gsd_m, grid.extent_m), seed=seed)
+    except Exception:  # noqa: BLE001 - a head start only: never a reason for generate to fail
+        return None
+
+
+def _load_meshes(library, asset_ids) -> None:
+    """Load these assets' meshes into the library's cache (the report's render and 3D preview use them)."""
+    for aid in dict.fromkeys(asset_ids):
+        try:
+            library.mesh(aid)
+        except Exception:  # noqa: BLE001 - the report falls back on its own for a mesh that will not load
+            pass
 
 
 def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
@@ -287,7 +332,7 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
 
 def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: dict, objects, n_vegetation: int,
                     exports: dict, scene: Scene | None = None, image: np.ndarray | None = None,
-                    side: "_SideProcess | None" = None) -> GenerateResult:
+                    side: "_SideProcess | None" = None, library=None, top_terrain=None) -> GenerateResult:
     """The report (when asked for, and when its extra is installed) and the result of a finished scene
     (``scene`` and the input ``image`` in memory spare the report reading them back)."""
     report_path = None
@@ -299,7 +344,8 @@ def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: 
         if build_report is not None:
             t0 = time.perf_counter()
             report_path = build_report(out, scene=scene, image=image,
-                                       side=side.submit if side is not None else None)
+                                       side=side.submit if side is not None else None, library=library,
+                                       top_terrain=top_terrain)
             timings["report"] = round(time.perf_counter() - t0, 3)
     counts: dict[str, int] = {}
     for o in objects:
@@ -355,6 +401,22 @@ class _Background:
         return dict(sorted(self._t.items()))
 
 
+def _warm_imports() -> None:
+    """Import what the later stages need while the image is read and segmented: those stages run mostly in
+    OpenCV, NumPy and onnxruntime, which release the GIL, so a cold command's ~1.5 s of imports (scipy alone
+    ~0.7 s) overlaps them instead of stalling the chain each time a stage first needs a module. Python's
+    import locks make a stage that gets there first simply wait for the module."""
+    import importlib
+
+    for name in ("onnxruntime", "scipy.ndimage", "scipy.spatial", "scipy.sparse.csgraph", "shapely",
+                 "coastforge.segmentation.learned", "coastforge.detection.hybrid", "coastforge.detection.refine",
+                 "coastforge.terrain", "coastforge.piers", "coastforge.matching", "coastforge.vegetation"):
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001 - an optional module missing is the stage's business, not this one's
+            pass
+
+
 # images at least this big (pixels) get a side process; below, its start-up costs more than it saves
 SIDE_PROCESS_MIN_PX = 1_500_000
 
@@ -363,6 +425,9 @@ def _side_warm_up() -> None:
     """Imports the side process needs, done while the main process segments."""
     import cv2  # noqa: F401
 
+    from . import matching  # noqa: F401
+    from .assets import library  # noqa: F401
+    from .detection import classical, hybrid  # noqa: F401
     from .segmentation import clean  # noqa: F401
 
     try:
@@ -370,6 +435,34 @@ def _side_warm_up() -> None:
         report._plt()
     except ImportError:  # the report extra is not installed
         pass
+
+
+_HERE: dict = {}  # the side process's own library, kept between its jobs
+
+
+def _preload_library(path: str | None) -> None:
+    """Load the library into the side process ahead of its matching job."""
+    _library_here(path)
+
+
+def _library_here(path: str | None):
+    """The library in this process: loaded once in the side process (which lives for one run only); loaded
+    afresh in the main process (where it runs only when the side process died)."""
+    import multiprocessing
+
+    if multiprocessing.parent_process() is None:
+        return _load_library(path)
+    key = str(path or "")
+    if key not in _HERE:
+        _HERE[key] = _load_library(path)
+    return _HERE[key]
+
+
+def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection], config, seed: int) -> list:
+    """``match_detections`` where the library is this process's (a module-level function for the side process)."""
+    from .matching import match_detections
+
+    return match_detections(image, dets, _library_here(library_path), config, seed)
 
 
 def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> None:
@@ -387,6 +480,7 @@ class _SideProcess:
 
     def __init__(self, pool):
         self._pool = pool
+        self._futures: list = []
 
     @classmethod
     def start(cls, n_px: int) -> "_SideProcess | None":
@@ -409,15 +503,24 @@ class _SideProcess:
         from concurrent.futures.process import BrokenProcessPool
 
         try:
-            return self._pool.submit(fn, *args).result()
+            return self.submit(fn, *args).result()
         except BrokenProcessPool:
             return fn(*args)
 
     def submit(self, fn, *args):
-        return self._pool.submit(fn, *args)
+        fut = self._pool.submit(fn, *args)
+        self._futures.append(fut)
+        return fut
 
     def close(self) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        """Stop the side process. With every job done it is terminated rather than left to tear its
+        interpreter down (matplotlib and all: about half a second the user would wait for nothing)."""
+        procs = list((getattr(self._pool, "_processes", None) or {}).values())
+        idle = all(f.done() for f in self._futures)
+        self._pool.shutdown(wait=not idle, cancel_futures=True)
+        if idle:
+            for p in procs:
+                p.terminate()
 
 
 def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,

@@ -333,19 +333,38 @@ def _check_gsd(gsd_m: float) -> float:
     return float(gsd_m)
 
 
-def render_topdown(
+@dataclass
+class TerrainLayer:
+    """The shaded terrain of a top-down render, before objects: it depends only on the terrain rasters, so
+    ``generate`` renders it for the report while later stages run (``render_topdown(terrain=...)``)."""
+
+    grid: PixelGrid
+    noise: NoiseBank
+    z: np.ndarray
+    surface_z: np.ndarray
+    water: np.ndarray
+    shaded: np.ndarray
+    water_level_m: float
+    key: tuple  # what it was rendered from: (shape of the rasters, extent, gsd, lighting, seed, water level)
+
+
+def _layer_key(classes, extent_m, gsd, lighting, seed, water_level_m) -> tuple:
+    return (tuple(np.shape(classes)), tuple(float(v) for v in extent_m), float(gsd), lighting, int(seed),
+            float(water_level_m))
+
+
+def render_terrain_layer(
     classes: np.ndarray,
     height: np.ndarray,
     extent_m: tuple[float, float],
-    instances: Sequence[MeshInstance],
     gsd_m: float,
     lighting: Lighting = Lighting(),
     seed: int = 0,
     water_level_m: float = 0.0,
-) -> np.ndarray:
-    """Render terrain + instances seen from straight above. ``classes`` (H, W) uint8 ids and ``height``
-    (H, W) float32 metres on the scene grid covering ``extent_m`` centred on the origin. Returns an RGB
-    uint8 image of round(extent_h / gsd) rows × round(extent_w / gsd) columns."""
+    instances: Sequence[MeshInstance] | None = None,
+) -> "TerrainLayer | tuple[TerrainLayer, list]":
+    """The shaded terrain seen from straight above (see ``render_topdown``). With ``instances``, their
+    objects and shadows are rendered beside it (a second thread) and returned with it."""
     gsd = _check_gsd(gsd_m)
     classes = np.asarray(classes)
     height = np.asarray(height)
@@ -385,14 +404,43 @@ def render_topdown(
     # the instance compositing loop is mostly Python (holds the GIL) while terrain shading is mostly large
     # numpy/OpenCV operations (release it): running both at once keeps two cores busy
     with ThreadPoolExecutor(max_workers=1) as pool:
-        fut = pool.submit(_objects_and_shadows, list(instances), grid, z, surface_z, lighting)
+        fut = (pool.submit(_objects_and_shadows, list(instances), grid, z, surface_z, lighting)
+               if instances is not None else None)
         albedo, relief = terrain_albedo(cls, grid, noise, seed, sun, water)
         ndl = hillshade(z, grid, sun)
         shaded = _background(grid, albedo, relief, ndl, water, depth, lighting, seed, noise)
         del albedo, relief, ndl
-        layers = fut.result()
-    img = _objects_over(shaded, water, layers, lighting, water_level=wl)
-    return _finish(img, lighting, grid, noise)
+        layers = fut.result() if fut is not None else None
+    layer = TerrainLayer(grid, noise, z, surface_z, water, shaded, wl,
+                         _layer_key(classes, (w_m, h_m), gsd, lighting, seed, wl))
+    return layer if instances is None else (layer, layers)
+
+
+def render_topdown(
+    classes: np.ndarray,
+    height: np.ndarray,
+    extent_m: tuple[float, float],
+    instances: Sequence[MeshInstance],
+    gsd_m: float,
+    lighting: Lighting = Lighting(),
+    seed: int = 0,
+    water_level_m: float = 0.0,
+    terrain: TerrainLayer | None = None,
+) -> np.ndarray:
+    """Render terrain + instances seen from straight above. ``classes`` (H, W) uint8 ids and ``height``
+    (H, W) float32 metres on the scene grid covering ``extent_m`` centred on the origin. Returns an RGB
+    uint8 image of round(extent_h / gsd) rows × round(extent_w / gsd) columns. ``terrain``: the
+    ``render_terrain_layer`` of the same arguments, already rendered (one of others is ignored)."""
+    key = _layer_key(classes, extent_m, _check_gsd(gsd_m), lighting, seed, water_level_m) \
+        if terrain is not None else None
+    if terrain is not None and terrain.key == key:
+        layer = terrain
+        layers = _objects_and_shadows(list(instances), layer.grid, layer.z, layer.surface_z, lighting)
+    else:
+        layer, layers = render_terrain_layer(classes, height, extent_m, gsd_m, lighting, seed, water_level_m,
+                                             instances=instances)
+    img = _objects_over(layer.shaded, layer.water, layers, lighting, water_level=layer.water_level_m)
+    return _finish(img, lighting, layer.grid, layer.noise)
 
 
 def render_scene(
@@ -401,9 +449,11 @@ def render_scene(
     gsd_m: float,
     lighting: Lighting = Lighting(),
     seed: int = 0,
+    terrain: TerrainLayer | None = None,
 ) -> np.ndarray:
     """Render a ``coastforge.scene.Scene``: terrain rasters, objects and vegetation instances.
-    ``mesh_for(asset_id)`` returns the asset's mesh (called once per asset id)."""
+    ``mesh_for(asset_id)`` returns the asset's mesh (called once per asset id); ``terrain``: its
+    ``scene_terrain_layer``, when already rendered."""
     if scene.classes is None or scene.height is None:
         raise InputError(
             f"scene {scene.name!r} has no terrain rasters (classes/height); load it with rasters=True"
@@ -438,8 +488,15 @@ def render_scene(
                 )
             )
     return render_topdown(
-        scene.classes, scene.height, scene.extent_m, instances, gsd_m, lighting, seed, scene.water_level_m
+        scene.classes, scene.height, scene.extent_m, instances, gsd_m, lighting, seed, scene.water_level_m,
+        terrain=terrain,
     )
+
+
+def scene_terrain_layer(classes: np.ndarray, height: np.ndarray, extent_m, water_level_m: float, gsd_m: float,
+                        lighting: Lighting = Lighting(), seed: int = 0) -> TerrainLayer:
+    """``render_scene``'s terrain layer of a scene with these rasters, rendered ahead of its objects."""
+    return render_terrain_layer(classes, height, extent_m, gsd_m, lighting, seed, water_level_m)
 
 
 def render_mesh_view(

@@ -204,8 +204,11 @@ def match_objects_to_decisions(objects: list[SceneObject], matches: list[dict]) 
 class _Assets:
     """Meshes and top views of the scene's assets: its library when it can be loaded, else the starter kit."""
 
-    def __init__(self, scene: Scene):
-        self.lib = None
+    def __init__(self, scene: Scene, library=None):
+        self.lib = library
+        self._views: dict = {}
+        if library is not None:  # the caller's (generate's), already loaded
+            return
         lib_path = scene.provenance.get("library")
         try:
             from .assets import library as lib_mod
@@ -246,15 +249,18 @@ class _Assets:
 # ----------------------------------------------------------------------------- sections
 
 
-def _render_top(scene: Scene, assets: _Assets) -> np.ndarray | None:
+def top_gsd(gsd_m: float, extent_m) -> float:
+    """The metres per pixel of the report's render from above. It is shown beside the input at half the page
+    width: ~1000 px is as sharp as it is ever displayed, and the procedural terrain costs per pixel."""
+    return max(float(gsd_m), max(float(v) for v in extent_m) / TOP_MAX_PX)
+
+
+def _render_top(scene: Scene, assets: _Assets, terrain=None) -> np.ndarray | None:
     try:
         from .render import render_scene
     except ImportError:
         return None
-    w, h = scene.extent_m
-    # shown beside the input at half the page width: ~1000 px is as sharp as it is ever displayed, and
-    # the procedural terrain costs per pixel
-    gsd = max(scene.gsd_m, max(w, h) / TOP_MAX_PX)
+    gsd = top_gsd(scene.gsd_m, scene.extent_m)
     cache: dict = {}
 
     def mesh_for(aid):
@@ -263,7 +269,7 @@ def _render_top(scene: Scene, assets: _Assets) -> np.ndarray | None:
         return cache[aid]
 
     try:
-        return render_scene(scene, mesh_for, gsd, seed=scene.seed)
+        return render_scene(scene, mesh_for, gsd, seed=scene.seed, terrain=terrain)
     except Exception:  # noqa: BLE001 - no top render (e.g. a missing mesh) rather than no report
         return None
 
@@ -896,14 +902,16 @@ def _guard(name: str, fn, *args):
 def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: str | Path | None = None,
                  overwrite: bool = False, progress: Callable[[str], None] | None = None, *,
                  scene: Scene | None = None, image: np.ndarray | None = None,
-                 side: Callable | None = None) -> Path:
+                 side: Callable | None = None, library=None, top_terrain=None) -> Path:
     """Write the offline ``report.html`` of the scene in ``scene_dir`` and return its path.
 
     ``out`` defaults to ``scene_dir/report.html``, which is always rebuilt (it is a view of the scene);
     another existing ``out`` is replaced only with ``overwrite``. ``truth`` (a truth scene) adds the
     metrics. ``progress(step)`` is told which part is being built. ``scene`` and ``image`` (the input
     RGB) are what ``generate`` already holds in memory: given, they are not read back from disk. ``side``
-    (``submit(fn, *args) -> Future`` of another process) builds the terrain plots there."""
+    (``submit(fn, *args) -> Future`` of another process) builds the terrain plots there. ``library`` (the
+    scene's, loaded) and ``top_terrain`` (``render.scene_terrain_layer`` at ``top_gsd``) spare loading and
+    rendering them again."""
     t_start = time.perf_counter()
     say = progress or (lambda _msg: None)
     scene_path = Path(scene_dir)
@@ -925,7 +933,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     if scene is None:
         scene = load_scene(scene_path)
     grid = scene.grid
-    assets = _Assets(scene)
+    assets = _Assets(scene, library)
     if image is not None:
         image_src = str((scene.provenance.get("input") or {}).get("image", ""))
     else:
@@ -953,7 +961,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         terrain_part = pool.submit(_guard, "terrain", _terrain_section, scene, scene_dir)
         pool.shutdown(wait=False)
     say("rendering the scene from above")
-    top = _render_top(scene, assets)
+    top = _render_top(scene, assets, top_terrain)
     parts["overview"] = _overview(image, top)
     base = _fit(image) if image is not None else None
     say("class map and detections")

@@ -10,6 +10,7 @@ A library is a folder::
     views/<id>/paint<k>_<background>.png   vehicles and small boats repainted in common body colours
     views/<id>/query_views.npz  small assets also rendered as a query sees them: at coarse GSDs (a few
                         pixels long), random yaw, cropped like the matcher's crops (LibraryConfig.query_view_*)
+    views/<id>/silhouette.png   the footprint (255 = object), aligned with the views
 
 ``build_library`` re-renders only assets whose mesh or settings changed and re-embeds only what the
 embedder has not seen. ``Library.load`` checks the format, the index hash and shape, and the
@@ -39,7 +40,7 @@ from ..config import LibraryConfig
 from ..errors import CoastforgeError, InputError, LibraryError, OutputExistsError
 from ..fsio import atomic_write_bytes, atomic_write_text, read_png, write_png
 from .index import VectorIndex
-from .meshes import MESH_SUFFIXES, file_hash, load_mesh, normalise_mesh
+from .meshes import MESH_SUFFIXES, file_hash, footprint_mask, load_mesh, normalise_mesh
 
 FORMAT = "coastforge.library/1"
 # scene frame (z up) -> glTF (y up): (x, y, z) -> (x, z, -y); a rotation about +x, so faces keep their winding
@@ -88,6 +89,7 @@ class AssetRecord:
     tags: tuple[str, ...] = ()
     view_conditions: tuple[str, ...] = ()  # "l<k>_<background>" per view
     mesh_up: str = "z"  # "y": the GLB follows glTF's y-up convention (libraries built since this field exists)
+    silhouette_path: Path | None = None  # footprint mask aligned with the views (libraries built since it exists)
 
     @property
     def length_m(self) -> float:
@@ -325,6 +327,7 @@ def view_settings(config: LibraryConfig) -> dict:
         "lighting_params": [dataclasses.asdict(l) for l in view_lightings()[: config.lightings]],
         "renderer": _render_source_hash(),
         "paint_variants": bool(config.paint_variants), "paints": [list(p) for p in PAINTS],
+        "silhouette": 1,  # footprint masks stored beside the views
         "query_views": {"version": 2, "gsds_m": [float(g) for g in config.query_view_gsds_m],
                         "max_px": float(config.query_view_max_px), "pad": QUERY_PAD, "min_px": QUERY_MIN_PX},
     }
@@ -494,6 +497,10 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
             write_png(root / rel, img)
             views.append({"file": rel, "lighting": k, "background": bg})
             images.append(img)
+        # the footprint, aligned with the views: the matcher's templates need it, and rasterising it from the
+        # mesh at match time would load trimesh and every mesh into a generate run
+        sil_rel = f"views/{spec.id}/silhouette.png"
+        write_png(root / sil_rel, footprint_mask(mesh, int(config.view_size_px), gsd) * np.uint8(255))
         paint_views = []
         if config.paint_variants and is_paintable(spec.category, norm.dims_m):
             bg = "ground" if spec.category == "vehicle" else "water"
@@ -513,7 +520,7 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
             "id": spec.id, "category": spec.category, "dims_m": [round(v, 5) for v in norm.dims_m],
             "draft_m": float(draft), "floating": bool(floating), "ue_path": spec.ue_path, "mesh": mesh_rel, "mesh_up": "y",
             "source_mesh": str(spec.mesh), "views": views, "paint_views": paint_views,
-            "query_views": query_views, "query_views_file": qfile,
+            "query_views": query_views, "query_views_file": qfile, "silhouette": sil_rel,
             "view_gsd_m": gsd,
             "tags": list(spec.tags),
             "normalisation": {"up_axis": norm.up_axis, "forward_axis": norm.forward_axis, "unit": norm.unit,
@@ -696,6 +703,17 @@ class Library:
             raise LibraryError(f"asset {asset_id!r} has no views in {self.root}; rebuild the library")
         return out
 
+    def silhouette(self, asset_id: str) -> np.ndarray | None:
+        """The asset's footprint seen from above, aligned with its views (float32 0/1), or None when the
+        library has none stored (thumbnail assets, libraries built before silhouettes were stored)."""
+        p = self.asset(asset_id).silhouette_path
+        if p is None:
+            return None
+        try:
+            return (read_png(p) > 127).astype(np.float32)
+        except InputError as exc:
+            raise LibraryError(f"the silhouette of asset {asset_id!r} ({p}) is unreadable; rebuild the library") from exc
+
     def top_view(self, asset_id: str, background: str = "water") -> tuple[np.ndarray, float]:
         """The noon-light view on ``background`` (what the matcher compares a crop's heading against)."""
         return self.view(asset_id, 1, background)
@@ -801,6 +819,7 @@ def _record_from_json(root: Path, a: dict) -> AssetRecord:
         floating=bool(a.get("floating", False)), ue_path=a.get("ue_path"),
         mesh_path=(root / a["mesh"]) if a.get("mesh") else None, views=views, view_gsd_m=float(a["view_gsd_m"]),
         tags=tuple(a.get("tags", ())), view_conditions=conds, mesh_up=str(a.get("mesh_up", "z")),
+        silhouette_path=(root / a["silhouette"]) if a.get("silhouette") else None,
     )
 
 
@@ -886,6 +905,7 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
         if old is not None and old.get("hashes", {}).get("content") == content and all(
                 (out / v["file"]).is_file() for v in old["views"] + old.get("paint_views", [])) and (
                 not old.get("query_views_file") or (out / old["query_views_file"]).is_file()) and (
+                not old.get("silhouette") or (out / old["silhouette"]).is_file()) and (
                 not old.get("mesh") or (out / old["mesh"]).is_file()):
             rec = {k: v for k, v in old.items() if k not in ("index_rows", "hashes")}
             records[s.id] = rec

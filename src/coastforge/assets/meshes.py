@@ -352,3 +352,20 @@ def _guess_unit(ext, category: str) -> tuple[float, str, str]:
             + ("plausible" if plausible else "unusual") + f" for a {category} ({lo:g}–{hi:g} m); "
             "give length_m or height_m for the real size")
     return best[1], best[0], note
+
+
+def footprint_mask(mesh, n: int, gsd: float) -> np.ndarray:
+    """The mesh seen from above: an n x n uint8 0/1 mask at ``gsd`` metres per pixel, its footprint's
+    bounding-box centre at the image centre (as the library's views are rendered), +x to the right."""
+    import cv2
+
+    mask = np.zeros((n, n), np.uint8)
+    v = np.asarray(mesh.vertices)
+    b = np.asarray(mesh.bounds)
+    cx, cy = 0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1])
+    col = (v[:, 0] - cx) / gsd + n / 2.0 - 0.5
+    row = n / 2.0 - (v[:, 1] - cy) / gsd - 0.5
+    pts = np.round(np.stack([col, row], 1) * 16).astype(np.int32)
+    for tri in pts[np.asarray(mesh.faces)]:  # one by one: fillPoly would cancel overlapping faces
+        cv2.fillConvexPoly(mask, tri, 1, lineType=cv2.LINE_8, shift=4)
+    return mask

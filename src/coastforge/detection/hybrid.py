@@ -51,9 +51,23 @@ DECK_MAX_STD_L, DECK_MAX_DE = 20.0, 6.0
 AFLOAT_MIN_WATER = 0.5  # see ``_afloat``
 
 
+def classical_part(image: GeoImage, class_map: ClassMap | None, config: DetectConfig, seed: int = 0,
+                   detector=None) -> list[Detection]:
+    """The classical detections the hybrid uses (module level: ``generate`` runs it in its side process while
+    the network runs here, and hands the future to ``HybridDetector(classical_dets=...)``)."""
+    from .classical import ClassicalDetector
+    from .learned import MAX_GSD_M, MIN_GSD_M
+
+    in_range = MIN_GSD_M <= image.grid.gsd_m <= MAX_GSD_M
+    det = detector if detector is not None else ClassicalDetector(config)
+    # in range, only the classical piers and boats are used: its vehicles are skipped (speed)
+    return det.detect(image, class_map, seed, vehicles=not in_range)
+
+
 class HybridDetector:
     def __init__(self, config: DetectConfig | None = None, weights: str | None = None, union: bool | None = None,
-                 **_opts):
+                 classical_dets=None, **_opts):
+        """``classical_dets``: a future of ``classical_part`` for the same image, class map and seed."""
         from .classical import ClassicalDetector
         from .learned import LearnedDetector
 
@@ -61,19 +75,29 @@ class HybridDetector:
         self.learned = LearnedDetector(self.config, weights=weights)
         self.classical = ClassicalDetector(self.config)
         self.union = self.config.hybrid_union if union is None else bool(union)
+        self._classical_dets = classical_dets
+
+    def _classical(self, image: GeoImage, class_map: ClassMap | None, seed: int) -> list[Detection]:
+        if self._classical_dets is not None:
+            from concurrent.futures.process import BrokenProcessPool
+
+            try:
+                return self._classical_dets.result()
+            except BrokenProcessPool:  # the process computing them died: compute them here
+                pass
+        return classical_part(image, class_map, self.config, seed, self.classical)
 
     def detect(self, image: GeoImage, class_map: ClassMap | None = None, seed: int = 0) -> list[Detection]:
         from .learned import MAX_GSD_M, MIN_GSD_M
         from .nms import rotated_nms
 
         in_range = MIN_GSD_M <= image.grid.gsd_m <= MAX_GSD_M
-        # in range, only the classical piers and boats are used: its vehicles are skipped (speed)
-        classical = self.classical.detect(image, class_map, seed, vehicles=not in_range)
-        if not in_range:
-            return classical  # e.g. satellite ports at 10 m/px: outside what the network was trained on
+        if not in_range:  # e.g. satellite ports at 10 m/px: outside what the network was trained on
+            return self._classical(image, class_map, seed)
         support = float(self.config.hybrid_support)
         floor = support if self.union and support > 0 else None
         learned = self.learned.detect(image, class_map, seed, floor=floor)
+        classical = self._classical(image, class_map, seed)  # after the network: it may be computing elsewhere
         strong = [d for d in learned if self.learned.is_confident(d)] if floor is not None else learned
         objects = self._on_land_as_vehicles(strong, image.grid.gsd_m, learned if floor is not None else ())
         piers = [d for d in classical if d.category in PIERS]

@@ -127,9 +127,10 @@ def _texture_fill(img: np.ndarray, hole: np.ndarray, ring: np.ndarray, rng: np.r
     base = np.zeros_like(f)
     done = np.zeros(hole.shape, bool)
     k = max(3, int(round(2.0 / gsd_m)) | 1)
+    # zeros outside the window: only ring pixels count, so the window need not reach past the ring
     while not done[hole].all() and k < 4 * max(hole.shape):
-        num = cv2.blur(f * valid[..., None], (k, k))
-        den = cv2.blur(valid, (k, k))
+        num = cv2.blur(f * valid[..., None], (k, k), borderType=cv2.BORDER_CONSTANT)
+        den = cv2.blur(valid, (k, k), borderType=cv2.BORDER_CONSTANT)
         ok = (den > 1e-3) & ~done
         base[ok] = num[ok] / den[ok][:, None]
         done |= ok
@@ -185,7 +186,7 @@ def clean_image(image: GeoImage, detections: Sequence[Detection], class_map: Cla
         x, y, w, h, area = stats[i]
         if area <= small_px:
             continue  # inpainted below, all small holes in one pass
-        pad = ring_px * 4
+        pad = ring_px + 6  # the ring, the 5 px texture blur and the 4 px texture blocks
         x0, y0 = max(0, x - pad), max(0, y - pad)
         x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
         hole = lab[y0:y1, x0:x1] == i
