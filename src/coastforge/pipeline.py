@@ -231,6 +231,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                 def side_library():
                     bg.result("library")  # built first (a first run builds the starter kit)
                     side.submit(_preload_library, req.library)
+                    if req.report:
+                        side.submit(_side_warm_up_plots)
 
                 bg.submit("side_library", side_library)
             dets = detect(image, config.detect, class_map=class_map, seed=seed, **opts)
@@ -422,7 +424,7 @@ SIDE_PROCESS_MIN_PX = 1_500_000
 
 
 def _side_warm_up() -> None:
-    """Imports the side process needs, done while the main process segments."""
+    """Imports the side process needs first, done while the main process segments."""
     import cv2  # noqa: F401
 
     from . import matching  # noqa: F401
@@ -430,8 +432,13 @@ def _side_warm_up() -> None:
     from .detection import classical, hybrid  # noqa: F401
     from .segmentation import clean  # noqa: F401
 
+
+def _side_warm_up_plots() -> None:
+    """matplotlib, for the report's terrain plots: imported in the side process's idle time between the
+    detection it helps with and the matching (earlier, it would delay that detection)."""
     try:
-        from . import report  # noqa: F401 - and matplotlib with it, for the terrain plots
+        from . import report  # noqa: F401
+
         report._plt()
     except ImportError:  # the report extra is not installed
         pass
