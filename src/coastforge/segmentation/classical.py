@@ -77,7 +77,17 @@ PATH_MAX_TEX = 4.0
 PATH_MAX_W_M = 5.0
 PATH_MIN_M2 = 15.0
 PATH_MIN_LEN_M = 10.0
+# shaded crowns (``shaded_crowns``): land darker than this share of the pavement's L*, wider than
+# SHADE_MIN_W_M, touching a tree region of SHADE_MIN_TREE_M2, at most SHADE_MAX_M2, of these classes
+SHADE_REL_L = 0.45
+SHADE_MIN_W_M = 2.4
+SHADE_MIN_TREE_M2 = 12.0
+SHADE_MAX_M2 = 300.0
+SHADE_MAX_GSD_M = 1.0  # crowns and their shade are resolved only on fine images
+SHADE_FROM = (ASPHALT, SIDEWALK, DIRT)
 PATH_RING_M = 2.5  # ... and at most a quarter of the ground this far around it is paved
+ROCK_MIN_TEX = 5.0  # riprap's std of L* over ~1.2 m is above this
+SPECK_SKEW = 4.0  # speckled sand: median minus mean L* over ~2 m above this
 
 
 def _odd(n: float) -> int:
@@ -428,6 +438,10 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
     a, b = F.a - a0, F.b - b0
     chroma = np.hypot(a, b)
     hue_green = ((a < -5.0) & (b > -2.0)) | (F.exg > 0.08)
+    # sand strewn with dark specks (debris, footprints, small shadows) is as textured as riprap, but
+    # its median colour over ~2 m stays sand; riprap's median is its stones' grey. Only textured
+    # pixels (where the riprap rule would fire) are judged so: smooth light dirt keeps the dirt rule
+    sandy = _sandy(F, a0, b0) & (t1 > ROCK_MIN_TEX)
     rules = {
         # canopies are textured at the 4 m scale; in shade they are dark whatever their hue
         # ... and, lit or shaded, greener than the pavement (dark car rows and shadows are not)
@@ -440,9 +454,9 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
         SIDEWALK: (chroma < 10.0) & (L >= 60) & (t1 < 6.0) & (a > -5.0),
         # bare earth: warm (orange-yellow hue), some chroma, mid lightness; sand is the light version
         DIRT: (a > 1.0) & (b > 6.0) & (chroma > 7.0) & (L > 25) & (L < 60) & (t1 < 6.0),
-        SAND: (L >= 60) & (b > 9.0) & (a > -3.0) & (a < 10.0),
+        SAND: ((L >= 60) & (b > 9.0) & (a > -3.0) & (a < 10.0)) | (sandy & ~hue_green),
         # riprap: mid-grey, fine-grained texture, only a weak colour cast
-        ROCKS: (chroma < 16.0) & (L > 33) & (L < 72) & (t1 > 5.0) & (a > -9.0) & (a < 6.0),
+        ROCKS: (chroma < 16.0) & (L > 33) & (L < 72) & (t1 > ROCK_MIN_TEX) & (a > -9.0) & (a < 6.0) & ~sandy,
     }
     seeds = np.full(L.shape, -1, np.int8)
     count = np.zeros(L.shape, np.uint8)
@@ -463,6 +477,19 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
     path = footpaths(F, water, seeds, chroma, a)
     seeds[path & ((seeds < 0) | (seeds == ASPHALT))] = SIDEWALK
     return seeds
+
+
+def _sandy(F: Features, a0: float = 0.0, b0: float = 0.0) -> np.ndarray:
+    """Pixels whose median colour over ~2 m is sand's (light, yellow; ``a0``, ``b0``: the colour cast)."""
+    k = min(_odd(2.0 / F.gsd_m), 7)  # cv2.medianBlur takes float32 up to 5 px; uint8 beyond
+    to8 = lambda v, lo, sc: np.clip((v - lo) * sc, 0, 255).astype(np.uint8)  # noqa: E731
+    Lm = cv2.medianBlur(to8(F.L, 0.0, 2.55), k).astype(np.float32) / 2.55
+    bm = cv2.medianBlur(to8(F.b - b0, -64.0, 2.0), k).astype(np.float32) / 2.0 - 64.0
+    am = cv2.medianBlur(to8(F.a - a0, -64.0, 2.0), k).astype(np.float32) / 2.0 - 64.0
+    # specks are dark outliers: they pull the mean below the median (textured dirt or riprap is more
+    # symmetric about its median)
+    skew = Lm - cv2.blur(F.L, (k, k))
+    return (Lm >= 60.0) & (bm > 9.0) & (am > -3.0) & (am < 10.0) & (skew > SPECK_SKEW)
 
 
 def footpaths(F: Features, water: np.ndarray, seeds: np.ndarray, chroma: np.ndarray,
@@ -588,6 +615,66 @@ def refine_land_edges(ids: np.ndarray, F: Features, land: np.ndarray, band_m: fl
         better = d < best
         best[better] = d[better]
         out[ys[better], xs[better]] = c
+    return out
+
+
+def shaded_crowns(ids: np.ndarray, F: Features, land: np.ndarray) -> np.ndarray:
+    """Deep shade attached to a canopy is the canopy: the crown's own shaded side and the shadow right
+    under it are nearly black, bluish (lit by the sky) and so no greener than the pavement, and the
+    classifier calls them pavement. Dark land (below ``SHADE_REL_L`` of the pavement's lightness)
+    wider than a car (an opening of ``SHADE_MIN_W_M`` removes dark cars) that touches a tree region of
+    at least ``SHADE_MIN_TREE_M2`` becomes trees, up to ``SHADE_MAX_M2`` (a building's shadow stays)."""
+    gsd = F.gsd_m
+    trees = ids == TREES
+    paved = land & (ids == ASPHALT)
+    if gsd > SHADE_MAX_GSD_M or trees.sum() * gsd * gsd < SHADE_MIN_TREE_M2 or paved.sum() < 200:
+        return ids
+    l_ref = float(np.median(F.L[paved]))
+    # the width test sees the whole dark blob, crown pixels included; only pavement-like pixels change
+    dark = land & (F.L < SHADE_REL_L * l_ref) & ((ids == TREES) | _labels_in(ids, np.array(SHADE_FROM), N_CLASSES))
+    dark = cv2.morphologyEx(dark.astype(np.uint8), cv2.MORPH_OPEN, _disk(SHADE_MIN_W_M / (2.0 * gsd)))
+    if not dark.any():
+        return ids
+    n, lab, st, _c = cv2.connectedComponentsWithStats(dark, connectivity=8)
+    # tree regions big enough to be crowns (not a car row the classifier took for trees)
+    tn, tlab, tst, _tc = cv2.connectedComponentsWithStats(trees.astype(np.uint8), connectivity=8)
+    crowns = _labels_in(tlab, np.flatnonzero(tst[:, cv2.CC_STAT_AREA] * gsd * gsd >= SHADE_MIN_TREE_M2), tn)
+    crowns &= tlab > 0
+    touch = cv2.dilate(crowns.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    hit = np.bincount(lab[touch & (lab > 0)], minlength=n) > 0
+    hit &= st[:, cv2.CC_STAT_AREA] * gsd * gsd <= SHADE_MAX_M2
+    hit[0] = False
+    out = ids.copy()
+    out[hit[lab] & _labels_in(ids, np.array(SHADE_FROM), N_CLASSES)] = TREES
+    return out
+
+
+def shaded_continuation(ids: np.ndarray, F: Features, land: np.ndarray, cls: int, into: tuple[int, ...],
+                        reach_m: float = 6.0, tol: float = 4.0) -> np.ndarray:
+    """Grow class ``cls`` into the shade on it: pixels of the classes ``into`` connected to ``cls`` that
+    are darker than its local colour (averaged over ``reach_m``) with a* and b* scaled down alike (a
+    shadow dims a surface without changing its hue) within ``tol``. A tree's mottled shade on a beach
+    reads as riprap to the rules; riprap itself is grey, not dimmed sand. Only the classes the shade is
+    mistaken for are taken: dirt has sand's hue at a lower lightness too, and stays."""
+    gsd = F.gsd_m
+    m = (ids == cls) & land
+    if m.sum() < 20:
+        return ids
+    k = _odd(reach_m / gsd)
+    mf = m.astype(np.float32)
+    norm = cv2.blur(mf, (k, k))
+    near = (norm > 0.05) & land & _labels_in(ids, np.array(into), N_CLASSES)
+    if not near.any():
+        return ids
+    Lr, ar, br = (cv2.blur(v * mf, (k, k)) / np.maximum(norm, 1e-3) for v in (F.L, F.a, F.b))
+    sc = np.clip(F.L / np.maximum(Lr, 1e-3), 0.0, 1.0)
+    shade = near & (F.L < Lr - 3.0) & (F.L > 0.3 * Lr) & (np.abs(F.a - ar * sc) + np.abs(F.b - br * sc) < tol)
+    n, lab = cv2.connectedComponents((shade | m).astype(np.uint8), connectivity=8)
+    keep = np.zeros(n, bool)
+    keep[np.unique(lab[m])] = True
+    keep[0] = False
+    out = ids.copy()
+    out[shade & keep[lab]] = cls
     return out
 
 
@@ -779,6 +866,8 @@ class ClassicalSegmenter:
                 if cfg.edge_refine_m > 0:
                     ids = refine_land_edges(ids, F, land, cfg.edge_refine_m)
                 ids = _absorb_into_asphalt(ids, gsd_m, cfg.vehicle_area_max_m2)
+                ids = shaded_crowns(ids, F, land)
+                ids = shaded_continuation(ids, F, land, SAND, into=(ROCKS,))
         min_px = int(round(cfg.min_region_m2 / (gsd_m * gsd_m)))
         ids = _merge_small(ids, min_px, fixed=water)
         ids[water] = WATER
