@@ -120,3 +120,11 @@ def test_outputs_have_normal_permissions(tmp_path):
     save_scene(make_scene(), tmp_path)
     mode = stat.S_IMODE(os.stat(tmp_path / "scene.json").st_mode)
     assert mode & stat.S_IRGRP and mode & stat.S_IROTH  # not 0600 like mkstemp's temporary file
+
+
+def test_a_synthetic_levels_folder_loads_by_its_truth_json(tmp_path):
+    # `coastforge synth` writes truth.json; `evaluate --truth FOLDER` takes the folder
+    s = make_scene()
+    save_scene(s, tmp_path)
+    (tmp_path / "scene.json").rename(tmp_path / "truth.json")
+    assert [o.id for o in load_scene(tmp_path).objects] == [o.id for o in s.objects]

@@ -296,12 +296,17 @@ def _resolve(folder: Path, rel: str, what: str) -> Path:
 
 
 def load_scene(path: str | Path, rasters: bool = True) -> Scene:
-    """Load ``scene.json`` (or a folder holding one) with its rasters and vegetation table."""
+    """Load ``scene.json`` (or a folder holding one, or the ``truth.json`` that ``coastforge synth``
+    writes) with its rasters and vegetation table."""
     path = Path(path)
     if path.is_dir():
-        path = path / "scene.json"
+        folder = path
+        path = folder / "scene.json"
+        if not path.is_file() and (folder / "truth.json").is_file():
+            path = folder / "truth.json"
     if not path.is_file():
-        raise SceneFormatError(f"no scene file at {path}; expected a scene.json written by coastforge")
+        raise SceneFormatError(f"no scene file at {path}; expected a scene.json written by coastforge "
+                               "(or the truth.json of a synthetic level)")
     try:
         d = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
