@@ -1,5 +1,5 @@
 """Issue #6: vehicle axes at 0.2 m/px (``refine._vehicle_axis``), cars seen shifted onto the empty bay
-beside them (``refine.drop_shifted_cars``) and boat specks (``refine.BOAT_MIN_M``), on drawn scenes."""
+beside them (``refine.drop_shifted_cars``), boat specks (``refine.BOAT_MIN_M``) and white glints (``is_glint``).
 
 from __future__ import annotations
 
@@ -109,3 +109,15 @@ def test_boat_specks_are_dropped_and_small_boats_kept():
     out = refine_boxes(rgb, [dinghy, speck], 0.2)
     assert [round(d.cx_px) for d in out] == [60] or [round(d.cx_px) for d in out] == [61]
     assert all(d.length_px * 0.2 >= BOAT_MIN_M for d in out)
+
+
+def test_white_glints_on_a_wavy_sea_are_glints_where_the_ring_is_resolved():
+    from coastforge.detection.refine import is_glint
+
+    white_glint = {"ring_p10": -0.8, "ring_mean": 2.4, "tint": 0.47}  # lake_harbor seed 3, 0.1 m/px
+    assert is_glint(white_glint, 0.1)
+    assert not is_glint(white_glint, 0.2)  # at 0.2 m/px the blob's blur reaches the ring: true buoys too
+    assert not is_glint(white_glint)
+    buoy = {"ring_p10": -1.5, "ring_mean": -0.2, "tint": 0.7}  # the brightest-ringed true buoy at 0.1 m/px
+    assert not is_glint(buoy, 0.1)
+    assert is_glint({"ring_p10": -1.0, "ring_mean": 0.5, "tint": 0.05})  # the water's own tint: as before

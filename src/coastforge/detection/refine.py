@@ -48,6 +48,11 @@ BUOY_MAX_ASPECT, BUOY_MIN_AREA_M2, BUOY_MIN_PEAK = 1.4, 0.25, 24.0  # see ``is_b
 # sun glints (``is_glint``): the ring (m from the centre) where a buoy darkens the water, how dark its
 # 10th percentile must get (Lab L) and how close to the water's chromaticity a glint's colour stays
 GLINT_RING_M, GLINT_MAX_SHADOW, GLINT_MAX_TINT = (0.6, 0.95), -1.4, 0.1
+# ... white glints on a wavy sea have another tint than the water, but where the ring lies at least
+# GLINT_RING_MIN_PX from the centre (finer than 0.15 m/px: the blur does not spill the blob into it) a
+# ring brighter than the water by GLINT_BRIGHT_RING on average, with no shadow, is a field of glints:
+# synthetic seeds 0-3 at 0.1 m/px, the 88 true buoys' rings -0.2 and darker, the 2 such glints' +2.4
+GLINT_RING_MIN_PX, GLINT_BRIGHT_RING = 4.0, 1.0
 DARK_WATER_SHADOW, DARK_WATER_CONTRAST = 0.8, 0.8  # see ``is_dark_water``
 # ... unless its ring is clearly darker (mean, 10th percentile) and its colour its own (tint), when 0.8 of
 # the area and peak will do (synthetic seeds 0-2: 2 of the 3 true buoys the shape checks dropped kept,
@@ -676,15 +681,20 @@ def buoy_features(rgb: np.ndarray, det: Detection, gsd_m: float) -> dict[str, fl
             "ring_mean": float(dl[ring].mean()) if ring.any() else 0.0, "tint": tint}
 
 
-def is_glint(f: dict[str, float]) -> bool:
+def is_glint(f: dict[str, float], gsd_m: float | None = None) -> bool:
     """``buoy_features`` of a sun glint: a glint is the water's own colour made brighter, and the
     ripples around it catch some of the sun too, so the water around it is, if anything, brighter; a
     floating buoy stands out in its own colour and darkens the water beside it (its shadow, its
     waterline). On the synthetic levels (seeds 0 and 1) every glint left by the shape checks had a
     10th percentile of the ring at -1.15 or more, a brighter ring on average and a tint <= 0.06; the
     true buoys' ring reached -1.61 or less at both resolutions (so each test alone separates them;
-    a glint must pass all three)."""
-    return f["ring_p10"] > GLINT_MAX_SHADOW and f["ring_mean"] > 0.0 and f["tint"] <= GLINT_MAX_TINT
+    a glint must pass all three). White glints on a wavy sea differ in tint but show their field of
+    glints in a well resolved ring (``GLINT_BRIGHT_RING``, ``gsd_m`` given)."""
+    if f["ring_p10"] <= GLINT_MAX_SHADOW or f["ring_mean"] <= 0.0:
+        return False
+    if f["tint"] <= GLINT_MAX_TINT:
+        return True
+    return gsd_m is not None and GLINT_RING_M[0] / gsd_m >= GLINT_RING_MIN_PX and f["ring_mean"] > GLINT_BRIGHT_RING
 
 
 def is_buoy(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
@@ -695,7 +705,7 @@ def is_buoy(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
     and 1, the last 6 of 6 dropped, no buoy)."""
     f = buoy_features(rgb, det, gsd_m)
     if f["aspect"] <= BUOY_MAX_ASPECT and f["area"] >= BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_MIN_PEAK:
-        return not is_glint(f)
+        return not is_glint(f, gsd_m)
     # a float casting a clear shadow in its own colour (far from any glint) may be a little smaller,
     # fainter or less round than the shape checks want: at 0.2 m/px a 1 m buoy is 5 px, blurred
     return (f["area"] >= BUOY_SURE_SHAPE * BUOY_MIN_AREA_M2 and f["peak"] >= BUOY_SURE_SHAPE * BUOY_MIN_PEAK
