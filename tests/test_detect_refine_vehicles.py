@@ -1,5 +1,5 @@
 """Issue #6: vehicle axes at 0.2 m/px (``refine._vehicle_axis``), cars seen shifted onto the empty bay
-beside them (``refine.drop_shifted_cars``), boat specks (``refine.BOAT_MIN_M``) and white glints (``is_glint``).
+beside them (``refine.drop_shifted_cars``), boat specks (``refine.BOAT_MIN_M``) and white glints (``is_glint``)."""
 
 from __future__ import annotations
 
