@@ -69,7 +69,7 @@ def test_run_batch_on_a_local_cluster(inputs, tmp_path):
     items = [BatchItem(str(bad), "broken", gsd_m=0.25), BatchItem(str(good), "harbor", gsd_m=0.25)]
     seen = []
     rep = run_batch(items, tmp_path, Config(), workers=1, progress=lambda r, k, n: seen.append((r.name, k, n)))
-    assert (rep["done"], rep["failed"], rep["skipped"]) == (1, 1, 0)
+    assert (rep["done"], rep["failed"], rep["skipped"]) == (1, 1, 0), rep["items"]
     assert [it["name"] for it in rep["items"]] == ["broken", "harbor"]  # in list order
     assert {s[0] for s in seen} == {"broken", "harbor"} and [s[1:] for s in seen] == [(1, 2), (2, 2)]
     assert json.loads((tmp_path / "batch_report.json").read_text())["failed"] == 1

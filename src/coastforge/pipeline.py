@@ -186,9 +186,6 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     out = prepare_output_dir(req.out, req.overwrite)
     timer = _Timer(progress)
     seed = config.seed
-    import threading
-
-    threading.Thread(target=_warm_imports, name="coastforge-imports", daemon=True).start()
     with timer.stage("read"):
         image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
         grid = image.grid
@@ -210,6 +207,13 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     from .terrain import estimate_terrain
     from .types import HeightMap
     from .vegetation import scatter
+
+    # shapely is imported by the background threads (matching, the report) and by this one (piers): a
+    # package whose modules import each other, imported by two threads at once, can hand one of them a
+    # half-initialised module (Python breaks the import-lock cycle that way); imported here first, it is
+    # whole before any thread starts (13 ms). (A thread that warmed imports beside the chain did hit
+    # this, on small images where the chain overtook it; on 2048² it saved nothing measurable.)
+    import shapely.geometry  # noqa: F401
 
     seed = config.seed
     grid = image.grid
@@ -401,22 +405,6 @@ class _Background:
 
     def timings(self) -> dict[str, dict]:
         return dict(sorted(self._t.items()))
-
-
-def _warm_imports() -> None:
-    """Import what the later stages need while the image is read and segmented: those stages run mostly in
-    OpenCV, NumPy and onnxruntime, which release the GIL, so a cold command's ~1.5 s of imports (scipy alone
-    ~0.7 s) overlaps them instead of stalling the chain each time a stage first needs a module. Python's
-    import locks make a stage that gets there first simply wait for the module."""
-    import importlib
-
-    for name in ("onnxruntime", "scipy.ndimage", "scipy.spatial", "scipy.sparse.csgraph", "shapely",
-                 "coastforge.segmentation.learned", "coastforge.detection.hybrid", "coastforge.detection.refine",
-                 "coastforge.terrain", "coastforge.piers", "coastforge.matching", "coastforge.vegetation"):
-        try:
-            importlib.import_module(name)
-        except Exception:  # noqa: BLE001 - an optional module missing is the stage's business, not this one's
-            pass
 
 
 # images at least this big (pixels) get a side process; below, its start-up costs more than it saves
