@@ -121,3 +121,16 @@ def test_white_glints_on_a_wavy_sea_are_glints_where_the_ring_is_resolved():
     buoy = {"ring_p10": -1.5, "ring_mean": -0.2, "tint": 0.7}  # the brightest-ringed true buoy at 0.1 m/px
     assert not is_glint(buoy, 0.1)
     assert is_glint({"ring_p10": -1.0, "ring_mean": 0.5, "tint": 0.05})  # the water's own tint: as before
+
+
+def test_vehicle_boxes_on_blank_ground_are_dropped_but_dark_cars_kept():
+    from coastforge.detection.refine import is_blank_ground
+
+    rng = np.random.default_rng(0)
+    sand = np.clip(np.full((160, 160, 3), (200, 185, 150), np.float32) + rng.normal(0, 3, (160, 160, 1)), 0, 255)
+    blank = Detection("vehicle", 0.42, 80.0, 80.0, 46.0, 18.0, 30.0)  # 4.6 m at 0.1 m/px, on nothing
+    assert is_blank_ground(sand.astype(np.uint8), blank, 0.1)
+    # a dark car on dark asphalt: little contrast, but its own colour
+    rgb = _cars([(80.0, 80.0, 46.0, 18.0, 30.0, (38, 40, 44))], size=160, ground=(70, 72, 76))
+    car = Detection("vehicle", 0.75, 80.0, 80.0, 46.0, 18.0, 30.0)
+    assert not is_blank_ground(rgb, car, 0.1)

@@ -24,7 +24,8 @@ Detectors place boxes to a few pixels and a few degrees (the learned net: 2-3° 
   patches with water between them) are dropped; so are boat boxes on a piece of a pier (a uniform
   core continuing past one end, water on both sides: ``is_structure_piece``), on a boat's foam wake
   (``drop_wakes``), boat boxes shorter than any boat (``BOAT_MIN_M``), vehicle boxes shorter than a
-  car (``VEHICLE_MIN_M``) and weaker vehicle boxes on the empty bay beside a car (``drop_shifted_cars``).
+  car (``VEHICLE_MIN_M``), vehicle boxes on blank ground (``is_blank_ground``) and weaker vehicle boxes
+  on the empty bay beside a car (``drop_shifted_cars``).
 - **Rows**: a boat whose mirror axis is unclear takes the axis of its clear, parallel neighbours
   (``align_with_neighbours``).
 
@@ -82,6 +83,8 @@ BOAT_MIN_M = 1.6
 # SHIFTED_MAX_LAT widths to the side, with a uniform core (Lab L std < SHIFTED_MAX_STD_L), is that
 # car seen shifted onto its shadow or the empty bay beside it (``drop_shifted_cars``)
 SHIFTED_SCORE_RATIO, SHIFTED_MAX_DEG, SHIFTED_MAX_LAT, SHIFTED_MAX_STD_L = 1.3, 15.0, 1.3, 4.0
+# vehicle boxes on blank ground (``is_blank_ground``)
+BLANK_MAX_CONTRAST, BLANK_MIN_SAME = 0.8, 0.5
 # ... and a box whose core is more than this share water-coloured (within this Lab distance)
 CORE_WATER_MAX, CORE_WATER_DE = 0.5, 8.0
 # ... dark hulls: a box at least this long (m) must be darker water on nearly all its core to go
@@ -763,6 +766,8 @@ def refine_boxes(rgb: np.ndarray, detections: list[Detection], gsd_m: float,
             continue
         if r.category == "boat" and r.length_px * gsd_m < BOAT_MIN_M:
             continue
+        if r.category == "vehicle" and is_blank_ground(rgb, r, gsd_m):
+            continue
         if r.category == "boat" and is_structure_piece(rgb, r, gsd_m):
             continue
         out.append(r)
@@ -770,6 +775,16 @@ def refine_boxes(rgb: np.ndarray, detections: list[Detection], gsd_m: float,
     if axis:
         out = align_with_neighbours(out, clear)
     return drop_shifted_cars(rgb, drop_wakes(rgb, out, gsd_m))
+
+
+def is_blank_ground(rgb: np.ndarray | LabCache, det: Detection, gsd_m: float) -> bool:
+    """A vehicle box on nothing: its core has the colour of the ground around it (at least
+    ``BLANK_MIN_SAME`` of it within ``CORE_WATER_DE``) and no contrast with it (``core_evidence``
+    contrast below ``BLANK_MAX_CONTRAST``): sand, a lawn, an empty bay. Dark cars on dark asphalt have
+    as little contrast but their own colour (synthetic seeds 0-3: the 2 lowest-contrast true cars, 0.71
+    and 0.74, shared none of their core with the ground; the 3 such false boxes 0.58-0.88 of it)."""
+    e = core_evidence(rgb, det, gsd_m)
+    return e["contrast"] < BLANK_MAX_CONTRAST and e["water"] >= BLANK_MIN_SAME
 
 
 def core_std_l(rgb: np.ndarray | LabCache, det: Detection) -> float:
