@@ -45,8 +45,8 @@ def make_input(work: Path, size_px: int) -> tuple[Path, float]:
 
 
 def calibrate() -> float:
-    """Best of 3 seconds for a fixed workload (matrix products, Gaussian blurs on one thread, a sort): a yardstick
-    for comparing this machine's figures with another's."""
+    """Best of 3 seconds for a fixed workload (matrix products, Gaussian blurs on one thread, a sort): a
+    yardstick for comparing this machine's figures with another's."""
     import cv2
 
     prev = cv2.getNumThreads()
@@ -86,7 +86,8 @@ def run_once(image: Path, gsd: float, out: Path, extra: list[str]) -> dict:
 
     from .scale import TreePeak
 
-    cmd = [*_coastforge_cmd(), "generate", str(image), "--gsd", repr(gsd), "--out", str(out), "--overwrite", *extra]
+    cmd = [*_coastforge_cmd(), "generate", str(image), "--gsd", repr(gsd), "--out", str(out), "--overwrite",
+           *extra]
     # CPU of the whole tree: generate waits for its side process, so the side's times reach generate's and
     # then, once generate is waited for, this process's children times
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -137,7 +138,8 @@ def main(argv: list[str] | None = None) -> None:
         for i in range(a.runs):
             r = run_once(image, gsd, work / "out", extra)
             runs.append(r)
-            print(f"run {i + 1}/{a.runs}: {r['wall_s']:.2f} s wall, {r['cpu_s']:.1f} s CPU, peak {r['peak_gb']:.2f} GB (process tree)",
+            print(f"run {i + 1}/{a.runs}: {r['wall_s']:.2f} s wall, {r['cpu_s']:.1f} s CPU, "
+                  f"peak {r['peak_gb']:.2f} GB (process tree)",
                   flush=True)
         load1 = os.getloadavg()
     finally:
@@ -149,13 +151,15 @@ def main(argv: list[str] | None = None) -> None:
     res = {"image_px": a.size, "gsd_m": gsd, "objects": best["counts"], "report": not a.no_report,
            "cpu_count": os.cpu_count(), "calibration_s": round(cal, 3),
            "load_average_start_end": [round(load0[0], 2), round(load1[0], 2)],
-           "wall_s": walls, "cpu_s": [r["cpu_s"] for r in runs], "wall_best_s": walls[0], "wall_median_s": walls[len(walls) // 2],
-           "peak_gb": peak, "best_run_stages_s": best["stages_s"], "best_run_background_s": best["background_s"],
+           "wall_s": walls, "cpu_s": [r["cpu_s"] for r in runs], "wall_best_s": walls[0],
+           "wall_median_s": walls[len(walls) // 2], "peak_gb": peak, "best_run_stages_s": best["stages_s"],
+           "best_run_background_s": best["background_s"],
            "target": {"wall_s": TARGET_WALL_S, "peak_gb": TARGET_PEAK_GB,
                       "met": walls[len(walls) // 2] <= TARGET_WALL_S and peak <= TARGET_PEAK_GB}}
     c = res["objects"]
     print(f"generate {a.size}x{a.size} px at {gsd:.4f} m/px ({c.get('detections', '?')} detections, "
-          f"{c.get('objects', '?')} placed objects incl. pier segments), report {'on' if res['report'] else 'off'}")
+          f"{c.get('objects', '?')} placed objects incl. pier segments), "
+          f"report {'on' if res['report'] else 'off'}")
     print(f"  wall: median {res['wall_median_s']:.2f} s, best {res['wall_best_s']:.2f} s of {a.runs} "
           f"(target <= {TARGET_WALL_S:g} s)")
     print(f"  peak memory (process tree): {peak:.2f} GB (target <= {TARGET_PEAK_GB:g} GB)")
