@@ -348,15 +348,20 @@ def symmetry_axis(rgb: np.ndarray | LabCache, det: Detection,
     fs = [cost(float(d)) for d in fine]
     vals = np.array([f[0] for f in fs])
     n = int(np.argmin(vals))
-    best = float(fine[n])
-    if 0 < n < len(fine) - 1:  # parabola through the minimum and its neighbours
-        a, bb, c = vals[n - 1], vals[n], vals[n + 1]
-        den = a - 2 * bb + c
-        if den > 1e-9:
-            best += step * 0.5 * (a - c) / den
+    best = float(fine[n]) + _parabola_offset(vals, n, step)
     t = fs[n][1]
     contrast = float(np.mean(cs) / max(vals[n], 1e-6))
     return best, -t / scale, contrast
+
+
+def _parabola_offset(vals: np.ndarray, n: int, step: float) -> float:
+    """Sub-step offset of the minimum ``vals[n]`` of a cost sampled every ``step``: the vertex of the
+    parabola through it and its neighbours (0 at either end, or when the three are not convex)."""
+    if not 0 < n < len(vals) - 1:
+        return 0.0
+    a, b, c = float(vals[n - 1]), float(vals[n]), float(vals[n + 1])
+    den = a - 2 * b + c
+    return step * 0.5 * (a - c) / den if den > 1e-9 else 0.0
 
 
 def _vehicle_axis(rgb: np.ndarray | LabCache, det: Detection,
@@ -393,12 +398,7 @@ def _vehicle_axis(rgb: np.ndarray | LabCache, det: Detection,
     cost = 0.5 * (a / max(a.mean(), 1e-9) + b / max(b.mean(), 1e-9)) + 1e-6
     penal = cost * (1.0 + VEH_SYM_PRIOR * (deltas / 10.0) ** 2)
     n = int(np.argmin(penal))
-    best = float(deltas[n])
-    if 0 < n < len(deltas) - 1:  # parabola through the minimum and its neighbours
-        p0, p1, p2 = penal[n - 1], penal[n], penal[n + 1]
-        den = p0 - 2 * p1 + p2
-        if den > 1e-9:
-            best += VEH_SYM_STEP * 0.5 * (p0 - p2) / den
+    best = float(deltas[n]) + _parabola_offset(penal, n, VEH_SYM_STEP)
     contrast = float(cost.mean() / max(cost[n], 1e-9))
     return best, -best_shift[n] / scale, contrast
 
