@@ -42,3 +42,23 @@ def test_a_class_map_without_water_decides_nothing_and_a_harbour_keeps_its_boats
     assert [d.category for d in boats_off_water([car], _map(0), GSD, DetectConfig())] == ["boat"]
     # water reaches to 20 px of the box's end: kept
     assert [d.category for d in boats_off_water([car], _map(370), GSD, DetectConfig())] == ["boat"]
+
+
+def _rgb(water_cols: int) -> np.ndarray:
+    """Grey asphalt (a little grain); a smooth blue-green sea over the first ``water_cols`` columns."""
+    rng = np.random.default_rng(0)
+    rgb = np.clip(np.full((400, 800, 3), (95, 97, 100), np.float32) + rng.normal(0, 6, (400, 800, 1)), 0, 255)
+    rgb[:, :water_cols] = (40, 90, 110)
+    return rgb.astype(np.uint8)
+
+
+def test_without_water_in_the_map_nor_in_the_image_boats_are_on_land():
+    # an inland tile (a car park, a tennis club): the class map has no water, and neither has the image
+    car = _boat(400, 4.6, 1.9)
+    on_grass = _boat(700, 4.6, 1.9)
+    buoy = _boat(450, 1.0, 1.0, "buoy")
+    out = boats_off_water([car, on_grass, buoy], _map(0), GSD, DetectConfig(), rgb=_rgb(0))
+    assert [(d.category, d.cx_px) for d in out] == [("vehicle", 400.0)]
+    # the image shows a sea the segmenter missed (300 x 400 px = 1875 m²): nothing is decided
+    kept = boats_off_water([car, buoy], _map(0), GSD, DetectConfig(), rgb=_rgb(300))
+    assert [d.category for d in kept] == ["boat", "buoy"]

@@ -63,7 +63,7 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
             # vehicles: the backend's front (the learned net's) is a prior, the windscreen cue is added
             dets = vehicle_fronts(rgb, dets)
     if class_map is not None and config.boats_need_water:
-        dets = boats_off_water(dets, class_map, image.grid.gsd_m, config)
+        dets = boats_off_water(dets, class_map, image.grid.gsd_m, config, rgb=rgb)
     out = []
     for d in dets:
         if d.category not in DETECTION_CATEGORIES:
@@ -90,13 +90,20 @@ def values_under_box(raster: np.ndarray, det: Detection, scale: float = 1.0) -> 
     return raster[r0:r1, c0:c1][inside > 0]
 
 
-def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, config: DetectConfig) -> list[Detection]:
+def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, config: DetectConfig,
+                    rgb: np.ndarray | None = None) -> list[Detection]:
     """Boats and buoys whose box stays further than ``near_water_m`` from any water are not boats (when the
     class map has water at all: at least ``min_water_area_m2``).
 
     The learned detector has only seen cars beside water; in a car park far from any shore it calls some
     cars (and car-sized planters) boats. Such a box becomes a vehicle when it has a vehicle's size and stands
-    on paving (its heading left to the matcher), and is dropped otherwise."""
+    on paving (its heading left to the matcher), and is dropped otherwise.
+
+    A class map with (almost) no water says more about the segmenter than about the boats when the image
+    has water after all (a sea painted as grass, seen on a synthetic beach, would otherwise cost every
+    boat): then nothing is decided. With ``rgb``, the classical detector's photometric water model gives a
+    second opinion: when it finds no water either (an inland tile of an orthophoto, a tennis club), every
+    boat is on land."""
     import cv2
 
     from ..classes import PAVED, WATER
@@ -105,12 +112,13 @@ def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, co
     if not any(d.category in cats for d in dets):
         return dets
     ids = class_map.ids
-    # a class map with (almost) no water says more about the segmenter than about the boats: a sea
-    # painted as grass (seen on a synthetic beach) would otherwise cost every boat
     if np.count_nonzero(ids == WATER) * gsd_m * gsd_m < config.min_water_area_m2:
-        return dets
-    # distance (px) from every pixel to the nearest water pixel
-    dist = cv2.distanceTransform((ids != WATER).astype(np.uint8), cv2.DIST_L2, 3)
+        if rgb is None or _photometric_water_m2(rgb, gsd_m, config) >= config.min_water_area_m2:
+            return dets
+        dist = np.full(ids.shape, np.inf, np.float32)  # no water anywhere
+    else:
+        # distance (px) from every pixel to the nearest water pixel
+        dist = cv2.distanceTransform((ids != WATER).astype(np.uint8), cv2.DIST_L2, 3)
     far_px = config.near_water_m / gsd_m
     out = []
     for d in dets:
@@ -127,6 +135,21 @@ def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, co
                 and 1.3 <= width_m <= 3.0 and paved >= 0.5):
             out.append(replace(d, category="vehicle", heading_known=False, heading_confidence=0.5))
     return out
+
+
+def _photometric_water_m2(rgb: np.ndarray, gsd_m: float, config: DetectConfig) -> float:
+    """Square metres of water the classical detector's colour-and-texture model finds, at its working
+    resolution (``work_gsd_m``, or the image's if coarser)."""
+    import cv2
+
+    from .classical import ClassicalDetector
+
+    work = max(gsd_m, float(config.work_gsd_m))
+    s = gsd_m / work
+    small = rgb if s >= 1.0 else cv2.resize(rgb, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+    lab = cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2LAB).astype(np.float32)
+    water = ClassicalDetector(config)._photometric_water(lab, work)
+    return float(np.count_nonzero(water)) * work * work
 
 
 # ----------------------------------------------------------------------------------------------- JSON
