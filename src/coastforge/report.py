@@ -286,7 +286,7 @@ def _overview(image, top) -> str:
     return '<div class="pair">' + "".join(row) + "</div>"
 
 
-def _classes_section(scene: Scene, base: np.ndarray | None, scene_dir: Path) -> str:
+def _classes_section(scene: Scene, base: np.ndarray | None, cleaned: np.ndarray | None) -> str:
     if scene.classes is None:
         return _note("No class map.")
     grid = scene.grid
@@ -308,11 +308,8 @@ def _classes_section(scene: Scene, base: np.ndarray | None, scene_dir: Path) -> 
     else:
         overlay = _img(_data_uri(_fit(cm), "png"), "Terrain classes")
     figs = [overlay]
-    cleaned = scene_dir / "cleaned.png"
-    if cleaned.is_file():
-        c = _read_rgb(cleaned)
-        if c is not None:
-            figs.append(_img(_data_uri(_fit(c)), "Cleaned image (boats and vehicles removed, inpainted)"))
+    if cleaned is not None:
+        figs.append(_img(_data_uri(_fit(cleaned)), "Cleaned image (boats and vehicles removed, inpainted)"))
     return legend + '<div class="pair">' + "".join(figs) + "</div>"
 
 
@@ -774,7 +771,8 @@ PREVIEW_VERTICES = 30_000
 PREVIEW_TEXTURE_PX = 1024
 
 
-def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets) -> tuple[bytes | None, str]:
+def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets,
+               cleaned: np.ndarray | None = None) -> tuple[bytes | None, str]:
     """The GLB shown in the 3D view: the exported one when small enough, else one built with a lighter
     terrain (fewer vertices, smaller texture) so that the page stays light and loads fast."""
     d = scene_dir / "gltf"
@@ -788,7 +786,8 @@ def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets) -> tuple[bytes | 
         from .export import DefaultResolver, run_exporter
 
         cfg = ExportConfig(gltf_max_vertices=PREVIEW_VERTICES, texture_max_px=PREVIEW_TEXTURE_PX)
-        built = run_exporter("gltf", scene, DefaultResolver(library=assets.lib, scene_dir=scene_dir), cfg)
+        resolver = DefaultResolver(library=assets.lib, scene_dir=scene_dir, texture=cleaned)
+        built = run_exporter("gltf", scene, resolver, cfg)
         for name, data in built.items():
             if name.endswith(".glb"):
                 return data, why
@@ -965,7 +964,9 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     parts["overview"] = _overview(image, top)
     base = _fit(image) if image is not None else None
     say("class map and detections")
-    parts["classes"] = _guard("classes", _classes_section, scene, base, scene_dir)
+    # the inpainted image: shown beside the class map and textures the 3D preview (read once)
+    cleaned = _read_rgb(scene_dir / "cleaned.png") if (scene_dir / "cleaned.png").is_file() else None
+    parts["classes"] = _guard("classes", _classes_section, scene, base, cleaned)
     det_base = _upscale_small(base) if base is not None else None
     img_w = image.shape[1] if image is not None else grid.width_px
     det_scale = (det_base.shape[1] / img_w) if det_base is not None else 1.0
@@ -986,7 +987,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         say("metrics against the truth")
     parts["metrics"] = _metrics_section(scene, str(truth) if truth is not None else None)
     say("3D preview")
-    glb, glb_src = _glb_bytes(scene, scene_dir, assets)
+    glb, glb_src = _glb_bytes(scene, scene_dir, assets, cleaned)
     bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js")
     bundle = bundle.read_text(encoding="utf-8")
     if glb is not None:

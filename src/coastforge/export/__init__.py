@@ -57,12 +57,14 @@ class DefaultResolver:
     exporters can texture the terrain with it; otherwise they use the class colours."""
 
     def __init__(self, library: Any = None, scene_dir: str | Path | None = None,
-                 mesh_lookup: Callable[[str], "trimesh.Trimesh | None"] | None = None):
+                 mesh_lookup: Callable[[str], "trimesh.Trimesh | None"] | None = None,
+                 texture: np.ndarray | None = None):
         self.library = library
         self.scene_dir = Path(scene_dir) if scene_dir is not None else None
         self.mesh_lookup = mesh_lookup
         self._meshes: dict[str, Any] = {}
-        self._texture: np.ndarray | None | bool = False
+        # ``texture``: the terrain image when the caller already holds it (not read from scene_dir)
+        self._texture: np.ndarray | None | bool = False if texture is None else texture
 
     # -- sources
     def _library_asset(self, asset_id: str):
