@@ -965,7 +965,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     base = _fit(image) if image is not None else None
     say("class map and detections")
     # the inpainted image: shown beside the class map and textures the 3D preview (read once)
-    cleaned = _read_rgb(scene_dir / "cleaned.png") if (scene_dir / "cleaned.png").is_file() else None
+    cleaned = _read_rgb(scene_dir / "cleaned.png")  # None when absent or unreadable
     parts["classes"] = _guard("classes", _classes_section, scene, base, cleaned)
     det_base = _upscale_small(base) if base is not None else None
     img_w = image.shape[1] if image is not None else grid.width_px

@@ -148,7 +148,7 @@ def _photometric_water_m2(rgb: np.ndarray, gsd_m: float, config: DetectConfig) -
     s = gsd_m / work
     small = rgb if s >= 1.0 else cv2.resize(rgb, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
     lab = cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2LAB).astype(np.float32)
-    water = ClassicalDetector(config)._photometric_water(lab, work)
+    water = ClassicalDetector(config).photometric_water(lab, work)
     return float(np.count_nonzero(water)) * work * work
 
 

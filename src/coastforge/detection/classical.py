@@ -217,10 +217,10 @@ class ClassicalDetector:
         shape = lab.shape[:2]
         if class_map is not None:
             return _resize(class_map.ids, shape, nearest=True) == WATER
-        return self._photometric_water(lab, gsd)
+        return self.photometric_water(lab, gsd)
 
-    def _photometric_water(self, lab: np.ndarray, gsd: float) -> np.ndarray:
-        """Smooth, water-coloured, not bright, in large connected areas."""
+    def photometric_water(self, lab: np.ndarray, gsd: float) -> np.ndarray:
+        """Smooth, water-coloured, not bright, in large connected areas (OpenCV 8-bit Lab)."""
         import cv2
 
         L, a, b = lab[..., 0], lab[..., 1], lab[..., 2]

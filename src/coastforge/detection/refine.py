@@ -787,17 +787,25 @@ def is_blank_ground(rgb: np.ndarray | LabCache, det: Detection, gsd_m: float) ->
     return e["contrast"] < BLANK_MAX_CONTRAST and e["water"] >= BLANK_MIN_SAME
 
 
-def core_std_l(rgb: np.ndarray | LabCache, det: Detection) -> float:
-    """The std of the Lab lightness (0-100) in the box's core (within 0.35 of its length and 0.3 of
-    its width from the centre)."""
-    L, W = det.length_px, det.width_px
-    s = max(1.0, min(4.0, 12.0 / max(W, 1.0)))
-    half_u, half_v = 0.35 * L + 1.0, 0.3 * W + 1.0
+def _box_crop(rgb: np.ndarray | LabCache, det: Detection, half_u: float,
+              half_v: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Lab crop aligned with ``det`` (±``half_u`` px along its axis, ±``half_v`` across, sampled
+    so the box is about 12 samples wide) and each sample's (u, v) offset from the centre in image px
+    (broadcastable: u (1, nu), v (nv, 1))."""
+    s = max(1.0, min(4.0, 12.0 / max(det.width_px, 1.0)))
     win = _lab_window(rgb, det.cx_px, det.cy_px, math.hypot(half_u, half_v) + 3)
     crop = _crop(win, det.cx_px, det.cy_px, det.yaw_deg, half_u, half_v, s)
     nv, nu = crop.shape[:2]
     u = ((np.arange(nu) - (nu - 1) / 2.0) / s)[None, :]
     v = ((np.arange(nv) - (nv - 1) / 2.0) / s)[:, None]
+    return crop, u, v
+
+
+def core_std_l(rgb: np.ndarray | LabCache, det: Detection) -> float:
+    """The std of the Lab lightness (0-100) in the box's core (within 0.35 of its length and 0.3 of
+    its width from the centre)."""
+    L, W = det.length_px, det.width_px
+    crop, u, v = _box_crop(rgb, det, 0.35 * L + 1.0, 0.3 * W + 1.0)
     core = crop[(np.abs(u) <= 0.35 * L) & (np.abs(v) <= 0.3 * W)]
     return float(core[:, 0].std()) if len(core) >= 4 else math.inf
 
@@ -883,14 +891,8 @@ def is_structure_piece(rgb: np.ndarray, det: Detection, gsd_m: float) -> bool:
     L, W = det.length_px, det.width_px
     if L < 4 or W < 2:
         return False
-    s = max(1.0, min(4.0, 12.0 / W))
     a, b = PIECE_BAND_M[0] / gsd_m, PIECE_BAND_M[1] / gsd_m
-    half_u, half_v = 0.5 * L + b, 0.5 * W + b
-    win = _lab_window(rgb, det.cx_px, det.cy_px, math.hypot(half_u, half_v) + 3)
-    crop = _crop(win, det.cx_px, det.cy_px, det.yaw_deg, half_u, half_v, s)
-    nv, nu = crop.shape[:2]
-    u = ((np.arange(nu) - (nu - 1) / 2.0) / s)[None, :]
-    v = ((np.arange(nv) - (nv - 1) / 2.0) / s)[:, None]
+    crop, u, v = _box_crop(rgb, det, 0.5 * L + b, 0.5 * W + b)
     core = crop[(np.abs(u) <= 0.35 * L) & (np.abs(v) <= 0.3 * W)]
     if len(core) < 4 or float(core[:, 0].std()) >= PIECE_MAX_STD_L:
         return False

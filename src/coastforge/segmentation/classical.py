@@ -631,7 +631,8 @@ def shaded_crowns(ids: np.ndarray, F: Features, land: np.ndarray) -> np.ndarray:
         return ids
     l_ref = float(np.median(F.L[paved]))
     # the width test sees the whole dark blob, crown pixels included; only pavement-like pixels change
-    dark = land & (F.L < SHADE_REL_L * l_ref) & ((ids == TREES) | _labels_in(ids, np.array(SHADE_FROM), N_CLASSES))
+    paving = _labels_in(ids, np.array(SHADE_FROM), N_CLASSES)
+    dark = land & (F.L < SHADE_REL_L * l_ref) & ((ids == TREES) | paving)
     dark = cv2.morphologyEx(dark.astype(np.uint8), cv2.MORPH_OPEN, _disk(SHADE_MIN_W_M / (2.0 * gsd)))
     if not dark.any():
         return ids
@@ -645,7 +646,7 @@ def shaded_crowns(ids: np.ndarray, F: Features, land: np.ndarray) -> np.ndarray:
     hit &= st[:, cv2.CC_STAT_AREA] * gsd * gsd <= SHADE_MAX_M2
     hit[0] = False
     out = ids.copy()
-    out[hit[lab] & _labels_in(ids, np.array(SHADE_FROM), N_CLASSES)] = TREES
+    out[hit[lab] & paving] = TREES
     return out
 
 
