@@ -29,7 +29,7 @@ def level(tmp_path_factory):
 def _request(image, out, **kw):
     from coastforge.pipeline import GenerateRequest
 
-    return GenerateRequest(image=str(image), out=str(out), gsd_m=0.25, report=False, **kw)
+    return GenerateRequest(image=str(image), out=str(out), gsd_m=0.25, **{"report": False, **kw})
 
 
 def test_generate_writes_every_output(level, tmp_path):
@@ -77,13 +77,13 @@ def test_a_failing_background_job_fails_generate(level, tmp_path, monkeypatch):
     monkeypatch.setattr(outputs, "write_segmentation", broken)
     out = tmp_path / "gen"
     with pytest.raises(OSError, match="disk full"):
-        run_generate(_request(level, out), Config())
+        run_generate(_request(level, out, report=True), Config())
     assert not (out / "scene.json").exists()  # the JSON is written last, never over incomplete outputs
+    assert not (out / "report.html").exists()  # the report waits for every output before it is written
 
 
 def test_side_process_gives_the_same_cleaned_image_and_report(level, tmp_path, monkeypatch):
     """The spawned side process (the CLI's default on big images) writes what the threads write."""
-    pytest.importorskip("matplotlib")
     from coastforge import pipeline
     from coastforge.pipeline import run_generate
 

@@ -170,3 +170,33 @@ def test_match_links():
     assert [got[o.id]["index"] for o in objs] == [2, 0]
     # an object whose asset has no decision stays unlinked
     assert "o9" not in match_objects_to_decisions([_obj(9, "zzz")], ms)
+
+
+def test_terrain_figures_are_inline_svg(built):
+    """The height map and the cross-sections are SVG drawn from the data (no plotting library): the relief
+    as an embedded JPEG with axes in metres, the transect as an arrow labelled with its shore type, and the
+    profile as a polyline on axes that span it."""
+    import base64
+    import re
+
+    page = built[0].read_text()
+    sec = page[page.index('id="sec-terrain"'):]
+    sec = sec[:sec.index("</section>")]
+    svgs = [base64.b64decode(u).decode() for u in re.findall(r'src="data:image/svg\+xml;base64,([^"]+)"', sec)]
+    assert len(svgs) == 2
+    hill, prof = svgs
+    assert "data:image/jpeg;base64," in hill and "x east (m)" in hill and "y north (m)" in hill
+    assert ">quay</text>" in hill and "<polygon" in hill  # the transect's label and arrow head
+    assert 'id="cbar"' in hill  # the colour bar
+    pts = re.findall(r'<polyline points="([^"]+)"', prof)
+    assert len(pts) == 1 and len(pts[0].split()) >= 10
+    assert "quay shore" in prof and "water level" in prof
+
+
+def test_nice_ticks():
+    from coastforge.report import _nice_ticks
+
+    assert _nice_ticks(-100, 100) == [-100, -50, 0, 50, 100]
+    assert _nice_ticks(-7.8, 0, 4) == [-6, -4, -2, 0]
+    assert _nice_ticks(0, 3.2, 4) == [0, 1, 2, 3]
+    assert _nice_ticks(1.0, 1.0) == [1.0]

@@ -23,7 +23,7 @@ from . import __version__
 from .classes import WATER
 from .config import Config
 from .fsio import atomic_write_text, prepare_output_dir
-from .scene import Scene, save_scene, save_scene_rasters
+from .scene import Scene, SceneObject, save_scene, save_scene_rasters
 from .types import ClassMap, Detection, GeoImage
 
 Progress = Callable[[str, float], None]  # (stage name, fraction done)
@@ -151,6 +151,32 @@ def place_decisions(decisions, dets: list[Detection], library, grid, config: Con
     return objects
 
 
+@dataclass(frozen=True)
+class BoxFootprint:
+    """A detected object's box in scene metres, for what must keep clear of the object before it is placed
+    (a placed object's footprint is its detected box: position, yaw and scale come from it)."""
+
+    x_m: float
+    y_m: float
+    yaw_deg: float
+    length_m: float
+    width_m: float
+
+    footprint_m = SceneObject.footprint_m
+
+
+def detection_footprints(dets: list[Detection], grid) -> list[BoxFootprint]:
+    """The boxes of the detections that become placed objects (boats, vehicles, buoys)."""
+    from .placement import box_in_metres
+
+    out = []
+    for d in dets:
+        if d.category in ("boat", "vehicle", "buoy"):
+            x, y, length, width = box_in_metres(d, grid)
+            out.append(BoxFootprint(x, y, d.yaw_deg, length, width))
+    return out
+
+
 def assets_by_category(library) -> dict[str, list[str]]:
     out: dict[str, list[str]] = {}
     for a in library.assets:
@@ -221,7 +247,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     # vegetation): the library loads while segmentation and detection run; matching (it needs the library
     # and the detections, not the terrain) runs beside terrain and piers; the cleaned image is only an
     # output; every side raster is written as soon as its stage is done.
-    with _Background(workers=4) as bg:
+    # threads that wait on the side process hold a worker: room for those and the CPU-bound jobs
+    with _Background(workers=8) as bg:
         bg.submit("library", _load_library, req.library)
         with timer.stage("segment"):
             class_map = segment(image, config.segment, seed=seed)
@@ -235,8 +262,6 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                 def side_library():
                     bg.result("library")  # built first (a first run builds the starter kit)
                     side.submit(_preload_library, req.library)
-                    if req.report:
-                        side.submit(_side_warm_up_plots)
 
                 bg.submit("side_library", side_library)
             dets = detect(image, config.detect, class_map=class_map, seed=seed, **opts)
@@ -263,40 +288,59 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             if walk is not None:
                 pr = build_piers(dets, class_map, walk, finger, config.piers)
                 pier_objects, pier_report = list(pr.objects), pr.report
+        with timer.stage("vegetation"):  # while the matcher works: clear of the piers and the detected boxes
+            veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library),
+                          pier_objects + detection_footprints(dets, grid), config.vegetation, seed)
         with timer.stage("match"):  # waiting for the matcher, then placement on the terrain
             decisions = bg.result("match")
             objects = place_decisions(decisions, dets, library, grid, config, height) + pier_objects
-        with timer.stage("vegetation"):
-            veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library), objects, config.vegetation,
-                          seed)
         if req.report:  # ... and the meshes it shows (loading them holds the GIL: not beside the stages above)
             plants = veg.vegetation.asset_id if veg.vegetation is not None else ()
             bg.submit("report_meshes", _load_meshes, library, [o.asset_id for o in objects] + [str(a) for a in plants])
         with timer.stage("write"):
+            # the scene rasters; the inpainted image, the segmentation rasters and the report's meshes are
+            # still being made beside: the report starts on its other sections meanwhile
             scene = write_scene_files(
                 bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
                 scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
-                                 veg.vegetation, pier_report, decisions))
-    timings = dict(timer.t)
-    timings["total"] = round(sum(timer.t.values()), 3)
-    # what ran beside the main chain (CPU contention makes the stages above slower by about this much)
-    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings, "stage_cpu_s": dict(timer.cpu),
-                                       "background_s": bg.timings()})
-    scene_path = save_scene(scene, out, rasters=False)  # rasters are written: the JSON last
-    exports: dict = {}
-    if req.exports:
-        from .export import export_scene
+                                 veg.vegetation, pier_report, decisions),
+                pending=("cleaned", "segmentation", "report_meshes"))
+        timings = dict(timer.t)
+        timings["total"] = round(sum(timer.t.values()), 3)
+        exports: dict = {}
+        if req.exports:  # exporters read the scene folder: complete it first
+            from .export import export_scene
 
-        with timer.stage("export"):
-            exports = export_scene(out, list(req.exports), out, overwrite=True, config=config.export,
-                                   library=library)
-        timings["export"] = timer.t["export"]
-        timings["total"] = round(timings["total"] + timings["export"], 3)
-        scene = replace(scene, provenance={**scene.provenance, "timings_s": timings})
-        scene_path = save_scene(scene, out, rasters=False)
-    return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports,
-                           scene=scene, image=image.rgb, side=side, library=library,
-                           top_terrain=bg.result("report_terrain") if req.report else None)
+            bg.wait()
+            scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)
+            with timer.stage("export"):
+                exports = export_scene(out, list(req.exports), out, overwrite=True, config=config.export,
+                                       library=library)
+            timings["export"] = timer.t["export"]
+            timings["total"] = round(timings["total"] + timings["export"], 3)
+
+        def wait(part: str):
+            if part == "meshes":
+                return bg.result("report_meshes") if req.report else None
+            if part == "cleaned":
+                return bg.result("cleaned")
+            return bg.wait()
+
+        report_path = make_report(req, out, timings, scene=_with_timings(scene, timings, timer, bg),
+                                  image=image.rgb, library=library,
+                                  top_terrain=bg.result("report_terrain") if req.report else None, wait=wait)
+        bg.wait()  # re-raises a failed job (without a report nothing else waited for them all)
+        # the JSON last, once every file it describes is written: a folder with a scene.json is complete
+        scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)
+    return GenerateResult(scene_path, out, timings, object_counts(objects, len(veg.vegetation)), exports,
+                          report_path)
+
+
+def _with_timings(scene: Scene, timings: dict, timer: _Timer, bg: "_Background") -> Scene:
+    """The scene with its stage timings and what ran beside the main chain (CPU contention makes the stages
+    slower by about that much) in its provenance."""
+    return replace(scene, provenance={**scene.provenance, "timings_s": dict(timings),
+                                      "stage_cpu_s": dict(timer.cpu), "background_s": bg.timings()})
 
 
 def _report_terrain(ids: np.ndarray, z_m: np.ndarray, grid, seed: int):
@@ -321,10 +365,10 @@ def _load_meshes(library, asset_ids) -> None:
 
 
 def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
-                      class_map: ClassMap, objects, veg, provenance: dict) -> Scene:
+                      class_map: ClassMap, objects, veg, provenance: dict, pending: tuple[str, ...] = ()) -> Scene:
     """The scene of a finished chain; its vegetation masks and rasters written (the JSON comes last, from the
     caller, once timings are known). ``transform`` is the scene rasters' (coarser than the input when a tiled
-    run downsampled them)."""
+    run downsampled them). Background jobs named in ``pending`` are not waited for (the caller does)."""
     scene = Scene(
         name=Path(req.image).stem, seed=seed, gsd_m=grid.gsd_m, extent_m=grid.extent_m, water_level_m=0.0,
         crs=grid.crs, transform=transform, height=height.z_m.astype(np.float32),
@@ -332,32 +376,33 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
         provenance=provenance)
     _write_vegetation_outputs(bg, out, veg)
     bg.submit("scene_rasters", save_scene_rasters, scene, out)
-    bg.wait()  # re-raises the first failed job
+    bg.wait(skip=pending)  # re-raises the first failed job
     return scene
 
 
-def finish_generate(req: GenerateRequest, out: Path, scene_path: Path, timings: dict, objects, n_vegetation: int,
-                    exports: dict, scene: Scene | None = None, image: np.ndarray | None = None,
-                    side: "_SideProcess | None" = None, library=None, top_terrain=None) -> GenerateResult:
-    """The report (when asked for, and when its extra is installed) and the result of a finished scene
-    (``scene`` and the input ``image`` in memory spare the report reading them back)."""
-    report_path = None
-    if req.report:
-        try:
-            from .report import build_report
-        except ImportError:
-            build_report = None
-        if build_report is not None:
-            t0 = time.perf_counter()
-            report_path = build_report(out, scene=scene, image=image,
-                                       side=side.submit if side is not None else None, library=library,
-                                       top_terrain=top_terrain)
-            timings["report"] = round(time.perf_counter() - t0, 3)
+def make_report(req: GenerateRequest, out: Path, timings: dict, scene: Scene | None = None,
+                image: np.ndarray | None = None, library=None, top_terrain=None, wait=None) -> Path | None:
+    """The report, when asked for and its extra is installed (``timings`` gets its time). ``scene``, the
+    input ``image``, ``library`` and ``top_terrain`` are what generate holds in memory; ``wait``: see
+    ``build_report``."""
+    if not req.report:
+        return None
+    try:
+        from .report import build_report
+    except ImportError:
+        return None
+    t0 = time.perf_counter()
+    path = build_report(out, scene=scene, image=image, library=library, top_terrain=top_terrain, wait=wait)
+    timings["report"] = round(time.perf_counter() - t0, 3)
+    return path
+
+
+def object_counts(objects, n_vegetation: int) -> dict[str, int]:
     counts: dict[str, int] = {}
     for o in objects:
         counts[o.category] = counts.get(o.category, 0) + 1
     counts["vegetation"] = n_vegetation
-    return GenerateResult(scene_path, out, timings, counts, exports, report_path)
+    return counts
 
 
 def _clean(image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
@@ -399,9 +444,10 @@ class _Background:
     def result(self, name: str):
         return self._jobs[name].result()
 
-    def wait(self) -> None:
-        for f in list(self._jobs.values()):
-            f.result()
+    def wait(self, skip: tuple[str, ...] = ()) -> None:
+        for name, f in list(self._jobs.items()):
+            if name not in skip:
+                f.result()
 
     def timings(self) -> dict[str, dict]:
         return dict(sorted(self._t.items()))
@@ -419,17 +465,6 @@ def _side_warm_up() -> None:
     from .assets import library  # noqa: F401
     from .detection import classical, hybrid  # noqa: F401
     from .segmentation import clean  # noqa: F401
-
-
-def _side_warm_up_plots() -> None:
-    """matplotlib, for the report's terrain plots: imported in the side process's idle time between the
-    detection it helps with and the matching (earlier, it would delay that detection)."""
-    try:
-        from . import report  # noqa: F401
-
-        report._plt()
-    except ImportError:  # the report extra is not installed
-        pass
 
 
 _HERE: dict = {}  # the side process's own library, kept between its jobs
@@ -460,16 +495,19 @@ def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection],
     return match_detections(image, dets, _library_here(library_path), config, seed)
 
 
-def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> None:
-    """The inpainted image (``_clean``) as a PNG; a module-level function so a side process can run it."""
+def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
+    """The inpainted image (``_clean``), written as a PNG and returned (the report shows it); a module-level
+    function so a side process can run it."""
     from .fsio import write_png
 
-    write_png(path, _clean(image, dets, class_map, seed))
+    rgb = _clean(image, dets, class_map, seed)
+    write_png(path, rgb)
+    return rgb
 
 
 class _SideProcess:
-    """One spawned worker process for pure-Python-heavy side work (the inpainted image, the report's
-    terrain plots). In a thread that work would hold the GIL against the main chain; in a process it
+    """One spawned worker process for pure-Python-heavy side work (half of the hybrid detection, the
+    matching, the inpainted image). In a thread that work would hold the GIL against the main chain; in a process it
     runs on the other core. ``start`` gives None (run it in a thread instead) for small images, in a
     daemonic process (which may not have children) or where processes cannot start."""
 
@@ -509,7 +547,7 @@ class _SideProcess:
 
     def close(self) -> None:
         """Stop the side process. With every job done it is terminated rather than left to tear its
-        interpreter down (matplotlib and all: about half a second the user would wait for nothing)."""
+        interpreter down (its imports and caches: time the user would wait for nothing)."""
         procs = list((getattr(self._pool, "_processes", None) or {}).values())
         idle = all(f.done() for f in self._futures)
         self._pool.shutdown(wait=not idle, cancel_futures=True)

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import json
+import math
 import time
 from dataclasses import replace
 from importlib import resources
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -79,23 +79,6 @@ def _resize_to(a: np.ndarray, shape: tuple[int, int], nearest: bool = False) -> 
     if a.shape[:2] == shape:
         return a
     return cv2.resize(a, (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST if nearest else cv2.INTER_AREA)
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _fig_uri(fig) -> str:
-    plt = _plt()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def _img(uri: str, caption: str, cls: str = "") -> str:
@@ -429,15 +412,6 @@ def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict
     return note + '<div class="scroll">' + _table(head, rows, "objects") + "</div>", style
 
 
-def _terrain_cmap(dmax: float, hmax: float):
-    from matplotlib.colors import LinearSegmentedColormap, TwoSlopeNorm
-
-    cmap = LinearSegmentedColormap.from_list("coast", [
-        (0.0, "#08306b"), (0.3, "#2171b5"), (0.4999, "#9ecae1"), (0.5, "#e8d9a8"), (0.65, "#8fbf6a"),
-        (0.82, "#7a6a48"), (1.0, "#f2efe9")])
-    return cmap, TwoSlopeNorm(vmin=-dmax, vcenter=0.0, vmax=hmax)
-
-
 def _load_sections(scene_dir: Path) -> list[dict]:
     p = scene_dir / "terrain_outputs" / "cross_section.json"
     if not p.is_file():
@@ -450,79 +424,189 @@ def _load_sections(scene_dir: Path) -> list[dict]:
         return []
 
 
-def _terrain_section(scene: Scene, scene_dir: Path) -> str:
-    if scene.height is None:
-        return _note("No height map.")
-    plt = _plt()
-    from matplotlib.colors import LightSource
+def _nice_ticks(lo: float, hi: float, n: int = 6) -> list[float]:
+    """About ``n`` round tick values (steps of 1, 2, 2.5 or 5 x 10^k) covering [lo, hi]."""
+    span = hi - lo
+    if not span > 0:
+        return [lo]
+    raw = span / max(n, 1)
+    mag = 10.0 ** math.floor(math.log10(raw))
+    step = next(m * mag for m in (1.0, 2.0, 2.5, 5.0, 10.0) if m * mag >= raw * (1 - 1e-9))
+    k0, k1 = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+    return [round(k * step, 10) + 0.0 for k in range(k0, k1 + 1)]
 
-    z = scene.height
+
+def _tick(v: float) -> str:
+    return f"{v:g}".replace("-", "\u2212")
+
+
+def _svg_uri(body: str, width: float, height: float) -> str:
+    """A self-contained SVG figure as a data URI (an <img>, so the page's lightbox enlarges it); text in
+    the browser's own sans-serif font: nothing to embed or download."""
+    svg = (f'<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" '
+           f'viewBox="0 0 {width:.0f} {height:.0f}" width="{width:.0f}" height="{height:.0f}" '
+           f'font-family="DejaVu Sans, Helvetica, Arial, sans-serif" font-size="12">'
+           f'<rect width="100%" height="100%" fill="white"/>{body}</svg>')
+    return "data:image/svg+xml;base64," + base64.b64encode(svg.encode("utf-8")).decode("ascii")
+
+
+def _svg_axes(ml: float, mt: float, pw: float, ph: float, xr, yr, xlabel: str, ylabel: str, title: str,
+              grid: bool = False) -> tuple[str, Callable, Callable]:
+    """Frame, ticks, labels and title of a plot area; returns them and the data → SVG maps for x and y."""
+    (x0, x1), (y0, y1) = xr, yr
+    sx = lambda x: ml + (np.asarray(x, float) - x0) / (x1 - x0) * pw  # noqa: E731
+    sy = lambda y: mt + (y1 - np.asarray(y, float)) / (y1 - y0) * ph  # noqa: E731
+    out = []
+    for t in _nice_ticks(x0, x1):
+        u = float(sx(t))
+        if grid:
+            out.append(f'<line x1="{u:.1f}" y1="{mt}" x2="{u:.1f}" y2="{mt + ph}" stroke="#000" '
+                       'stroke-opacity="0.12"/>')
+        out.append(f'<line x1="{u:.1f}" y1="{mt + ph}" x2="{u:.1f}" y2="{mt + ph + 5}" stroke="#333"/>'
+                   f'<text x="{u:.1f}" y="{mt + ph + 18}" text-anchor="middle">{_tick(t)}</text>')
+    for t in _nice_ticks(y0, y1):
+        v = float(sy(t))
+        if grid:
+            out.append(f'<line x1="{ml}" y1="{v:.1f}" x2="{ml + pw}" y2="{v:.1f}" stroke="#000" '
+                       'stroke-opacity="0.12"/>')
+        out.append(f'<line x1="{ml - 5}" y1="{v:.1f}" x2="{ml}" y2="{v:.1f}" stroke="#333"/>'
+                   f'<text x="{ml - 8}" y="{v + 4:.1f}" text-anchor="end">{_tick(t)}</text>')
+    out.append(f'<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="#333"/>'
+               f'<text x="{ml + pw / 2:.1f}" y="{mt + ph + 36}" text-anchor="middle">{html.escape(xlabel)}</text>'
+               f'<text transform="translate({ml - 44},{mt + ph / 2:.1f}) rotate(-90)" text-anchor="middle">'
+               f'{html.escape(ylabel)}</text>'
+               f'<text x="{ml + pw / 2:.1f}" y="{mt - 10}" text-anchor="middle" font-size="14">'
+               f'{html.escape(title)}</text>')
+    return "".join(out), sx, sy
+
+
+def _hillshade_figure(scene: Scene, sections: list[dict]) -> str:
+    """The height map as a shaded relief (the terrain stage's colours), in metres, with a colour bar and the
+    cross-section transects as arrows: an SVG data URI."""
+    from .terrain.outputs import colour_relief, hillshade_rgb
+
+    z = np.nan_to_num(scene.height.astype(np.float32))
     grid = scene.grid
     step = max(1, int(np.ceil(max(z.shape) / 900)))
-    zs = np.nan_to_num(z[::step, ::step].astype(np.float64))
+    zs = z[::step, ::step]
     w, h = scene.extent_m
     dmax = max(float(-zs.min()), 0.5)
-    hmax = max(float(zs.max()), 0.5)
-    cmap, norm = _terrain_cmap(dmax, hmax)
-    fig, ax = plt.subplots(figsize=(7.2, 6.2))
-    ls = LightSource(azdeg=315, altdeg=40)
-    rgb = ls.shade(zs, cmap=cmap, norm=norm, vert_exag=2, blend_mode="soft", dx=grid.gsd_m * step,
-                   dy=grid.gsd_m * step)
-    ax.imshow(rgb, extent=(-w / 2, w / 2, -h / 2, h / 2), interpolation="bilinear")
-    sm = plt.cm.ScalarMappable(cmap=cmap, norm=norm)
-    cb = fig.colorbar(sm, ax=ax, shrink=0.85, pad=0.02)
-    cb.set_label("height (m); 0 = water level, below 0 = bathymetry")
-    sections = _load_sections(scene_dir)
+    hmax = max(float(zs.max()), 2.0)  # hillshade_rgb's land ramp spans at least 2 m
+    relief = _data_uri(hillshade_rgb(zs, grid.gsd_m * step, max_depth_m=dmax), quality=88)
+    ml, mt, pw = 64.0, 34.0, 560.0
+    ph = float(np.clip(pw * h / w, 200.0, 900.0))
+    axes, sx, sy = _svg_axes(ml, mt, pw, ph, (-w / 2, w / 2), (-h / 2, h / 2), "x east (m)", "y north (m)",
+                             f"Height map (shaded relief): {float(z.min()):.1f} m to {float(z.max()):.1f} m")
+    body = [f'<image x="{ml}" y="{mt}" width="{pw}" height="{ph:.1f}" preserveAspectRatio="none" '
+            f'href="{relief}" xlink:href="{relief}"/>', axes]
     for s in sections:
         (c0, r0), (c1, r1) = s["start_px"], s["end_px"]
-        x0, y0 = grid.to_scene(c0, r0)
-        x1, y1 = grid.to_scene(c1, r1)
+        u0, v0 = ml + c0 / grid.width_px * pw, mt + r0 / grid.height_px * ph
+        u1, v1 = ml + c1 / grid.width_px * pw, mt + r1 / grid.height_px * ph
         col = SHORE_COLOURS.get(s["shore_type"], "#d62728")
-        ax.annotate("", xy=(x1, y1), xytext=(x0, y0), arrowprops=dict(arrowstyle="-|>", color=col, lw=2.2))
-        ax.plot([x0], [y0], "o", color=col, ms=6, mec="white")
-        # label a quarter of the way along: inside the map, off the shoreline
-        ax.text(x0 + 0.25 * (x1 - x0), y0 + 0.25 * (y1 - y0), s["shore_type"], color="white", fontsize=9,
-                fontweight="bold", ha="center", va="center",
-                bbox=dict(facecolor=col, alpha=0.85, pad=1.5, lw=0))
-    ax.set_xlabel("x east (m)")
-    ax.set_ylabel("y north (m)")
-    ax.set_title(f"Height map (hillshade): {float(z.min()):.1f} m to {float(z.max()):.1f} m")
-    hill = _fig_uri(fig)
-    fig, ax = plt.subplots(figsize=(7.2, 4.0))
+        ang = math.atan2(v1 - v0, u1 - u0)
+        head = [(u1, v1), (u1 - 12 * math.cos(ang - 0.4), v1 - 12 * math.sin(ang - 0.4)),
+                (u1 - 12 * math.cos(ang + 0.4), v1 - 12 * math.sin(ang + 0.4))]
+        tu, tv = u0 + 0.25 * (u1 - u0), v0 + 0.25 * (v1 - v0)  # a quarter along: inside, off the shoreline
+        label = html.escape(str(s["shore_type"]))
+        body.append(f'<line x1="{u0:.1f}" y1="{v0:.1f}" x2="{u1:.1f}" y2="{v1:.1f}" stroke="{col}" '
+                    f'stroke-width="2.4"/><polygon points="{" ".join(f"{a:.1f},{b:.1f}" for a, b in head)}" '
+                    f'fill="{col}"/><circle cx="{u0:.1f}" cy="{v0:.1f}" r="4" fill="{col}" stroke="white"/>'
+                    f'<rect x="{tu - 4 - 3.4 * len(label):.1f}" y="{tv - 9:.1f}" width="{8 + 6.8 * len(label):.1f}" '
+                    f'height="17" rx="2" fill="{col}" fill-opacity="0.85"/><text x="{tu:.1f}" y="{tv + 4:.1f}" '
+                    f'text-anchor="middle" fill="white" font-weight="bold" font-size="11">{label}</text>')
+    # colour bar: water (depth) below the middle, land (height) above, as the relief's two ramps
+    bx, bw, bh = ml + pw + 18, 16.0, ph * 0.85
+    by = mt + (ph - bh) / 2
+    fr = np.linspace(0.0, 1.0, 25)  # position up the bar
+    vals = np.where(fr < 0.5, -dmax * (1 - 2 * fr), hmax * (2 * fr - 1)).astype(np.float32)
+    vals[12] = -1e-6  # the middle: the shallowest water colour
+    cols = colour_relief(vals[None], dmax, max_height_m=hmax)[0]
+    stops = "".join(f'<stop offset="{1 - f:.3f}" stop-color="rgb({r:.0f},{g:.0f},{b:.0f})"/>'
+                    for f, (r, g, b) in zip(fr[::-1], cols[::-1]))
+    body.append(f'<defs><linearGradient id="cbar" x1="0" y1="0" x2="0" y2="1">{stops}'
+                f'</linearGradient></defs><rect x="{bx}" y="{by:.1f}" width="{bw}" height="{bh:.1f}" '
+                f'fill="url(#cbar)" stroke="#333"/>')
+    for t in [*_nice_ticks(-dmax, 0.0, 4), *_nice_ticks(0.0, hmax, 4)[1:]]:
+        f = 0.5 * (1 + t / hmax) if t > 0 else 0.5 * (1 - t / -dmax) if t < 0 else 0.5
+        v = by + (1 - f) * bh
+        body.append(f'<line x1="{bx + bw}" y1="{v:.1f}" x2="{bx + bw + 4}" y2="{v:.1f}" stroke="#333"/>'
+                    f'<text x="{bx + bw + 7}" y="{v + 4:.1f}">{_tick(t)}</text>')
+    body.append(f'<text transform="translate({bx + bw + 58},{mt + ph / 2:.1f}) rotate(-90)" '
+                'text-anchor="middle" font-size="11">height (m); 0 = water level, below = bathymetry</text>')
+    return _svg_uri("".join(body), ml + pw + 120, mt + ph + 48)
+
+
+def _profiles_figure(scene: Scene, sections: list[dict]) -> tuple[str, str]:
+    """The shore cross-sections in side view (or, without them, the centre row and column where they cross
+    the shore): an SVG data URI and its caption."""
+    z = scene.height
+    w, h = scene.extent_m
+    lines = []  # (label, colour, distances, heights)
     if sections:
-        dmin = min(min(s["distance_m"]) for s in sections)
-        dmx = max(max(s["distance_m"]) for s in sections)
-        lo = min(min(s["height_m"]) for s in sections)
         for s in sections:
-            d, hh = np.asarray(s["distance_m"], float), np.asarray(s["height_m"], float)
-            col = SHORE_COLOURS.get(s["shore_type"], None)
-            ax.plot(d, hh, color=col, lw=2, label=f"{s['shore_type']} shore")
-        ax.fill_between([dmin, dmx], [0, 0], min(lo, 0) - 0.5, color="#9ecae1", alpha=0.35, zorder=0,
-                        label="water")
-        ax.axvline(0, color="#555", lw=0.8, ls=":")
-        ax.set_xlim(dmin, dmx)
-        ax.set_ylim(min(lo, 0) - 0.5, None)
-        ax.set_xlabel("distance from the shoreline (m): ← inland | offshore →")
+            lines.append((f"{s['shore_type']} shore", SHORE_COLOURS.get(s["shore_type"], "#1f77b4"),
+                          np.asarray(s["distance_m"], float), np.asarray(s["height_m"], float)))
         title = "Shore cross-sections (side view), one per shore type"
-        cap = "Shore cross-sections from the terrain stage (transects drawn as arrows on the hillshade)"
+        xlabel = "distance from the shoreline (m): \u2190 inland | offshore \u2192"
+        cap = "Shore cross-sections from the terrain stage (transects drawn as arrows on the height map)"
     else:
-        # no transects from the terrain stage: the centre row and column, if they cross the shore
-        drawn = False
-        for label, prof, length in (("west → east through the centre", z[z.shape[0] // 2, :], w),
-                                    ("south → north through the centre", z[::-1, z.shape[1] // 2], h)):
+        for label, prof, length, col in (("west \u2192 east through the centre", z[z.shape[0] // 2, :], w, "#1f77b4"),
+                                         ("south \u2192 north through the centre", z[::-1, z.shape[1] // 2], h,
+                                          "#ff7f0e")):
+            prof = np.nan_to_num(np.asarray(prof, float))
             if prof.min() < 0 < prof.max():
-                ax.plot(np.linspace(-length / 2, length / 2, prof.size), prof, lw=1.6, label=label)
-                drawn = True
-        ax.set_xlabel("position along the line (m)")
-        title = "Cross-section through the scene centre" + ("" if drawn else ": no line crosses the shore")
+                lines.append((label, col, np.linspace(-length / 2, length / 2, prof.size), prof))
+        title = "Cross-section through the scene centre" + ("" if lines else ": no line crosses the shore")
+        xlabel = "position along the line (m)"
         cap = "Cross-section through the scene centre (no terrain_outputs/cross_section.json found)"
-    ax.axhline(0, color="#1f77b4", lw=1, ls="--", label="water level")
-    ax.set_ylabel("height (m)")
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="best")
-    sec = _fig_uri(fig)
-    return ('<div class="pair">' + _img(hill, "Height map with land and bathymetry") + _img(sec, cap)
+    if lines:
+        d0 = min(float(d.min()) for _, _, d, _ in lines)
+        d1 = max(float(d.max()) for _, _, d, _ in lines)
+        lo = min(float(hh.min()) for *_, hh in lines)
+        hi = max(float(hh.max()) for *_, hh in lines)
+    else:
+        d0, d1, lo, hi = -w / 2, w / 2, -1.0, 1.0
+    y0, y1 = min(lo, 0.0) - 0.5, max(hi, 0.0) + 0.5
+    if d1 <= d0:
+        d1 = d0 + 1.0
+    ml, mt, pw, ph = 64.0, 34.0, 620.0, 300.0
+    axes, sx, sy = _svg_axes(ml, mt, pw, ph, (d0, d1), (y0, y1), xlabel, "height (m)", title, grid=True)
+    v0 = float(sy(0.0))
+    body = [f'<rect x="{ml}" y="{v0:.1f}" width="{pw}" height="{mt + ph - v0:.1f}" fill="#9ecae1" '
+            'fill-opacity="0.35"/>', axes,
+            f'<line x1="{ml}" y1="{v0:.1f}" x2="{ml + pw}" y2="{v0:.1f}" stroke="#1f77b4" stroke-dasharray="6 4"/>']
+    if d0 < 0 < d1 and sections:
+        u = float(sx(0.0))
+        body.append(f'<line x1="{u:.1f}" y1="{mt}" x2="{u:.1f}" y2="{mt + ph}" stroke="#555" '
+                    'stroke-dasharray="2 3"/>')
+    for _, col, d, hh in lines:
+        keep = np.linspace(0, d.size - 1, min(d.size, 800)).astype(int)  # plenty for 620 px
+        pts = " ".join(f"{u:.1f},{v:.1f}" for u, v in zip(sx(d[keep]), sy(hh[keep])))
+        body.append(f'<polyline points="{pts}" fill="none" stroke="{col}" stroke-width="2" '
+                    'stroke-linejoin="round"/>')
+    legend = [(label, col, "") for label, col, _, _ in lines] + [("water level", "#1f77b4", "6 4")]
+    lw = 14 + 6.6 * max(len(lb) for lb, _, _ in legend) + 34
+    lx, ly = ml + pw - lw - 8, mt + 8
+    body.append(f'<rect x="{lx:.1f}" y="{ly}" width="{lw:.1f}" height="{8 + 17 * len(legend)}" fill="white" '
+                'fill-opacity="0.85" stroke="#bbb"/>')
+    for k, (label, col, dash) in enumerate(legend):
+        yy = ly + 14 + 17 * k
+        body.append(f'<line x1="{lx + 8:.1f}" y1="{yy - 4}" x2="{lx + 34:.1f}" y2="{yy - 4}" stroke="{col}" '
+                    f'stroke-width="2" stroke-dasharray="{dash or "none"}"/>'
+                    f'<text x="{lx + 40:.1f}" y="{yy}" font-size="11">{html.escape(label)}</text>')
+    return _svg_uri("".join(body), ml + pw + 20, mt + ph + 48), cap
+
+
+def _terrain_section(scene: Scene, scene_dir: Path) -> str:
+    """The height map with the shore transects, and the transects in side view: inline SVG figures (no
+    plotting library: they cost milliseconds and stay sharp when enlarged)."""
+    if scene.height is None:
+        return _note("No height map.")
+    sections = _load_sections(scene_dir)
+    hill = _hillshade_figure(scene, sections)
+    prof, cap = _profiles_figure(scene, sections)
+    return ('<div class="pair">' + _img(hill, "Height map with land and bathymetry") + _img(prof, cap)
             + "</div>")
 
 
@@ -901,23 +985,25 @@ def _guard(name: str, fn, *args):
 def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: str | Path | None = None,
                  overwrite: bool = False, progress: Callable[[str], None] | None = None, *,
                  scene: Scene | None = None, image: np.ndarray | None = None,
-                 side: Callable | None = None, library=None, top_terrain=None) -> Path:
+                 library=None, top_terrain=None, wait: Callable[[str], Any] | None = None) -> Path:
     """Write the offline ``report.html`` of the scene in ``scene_dir`` and return its path.
 
     ``out`` defaults to ``scene_dir/report.html``, which is always rebuilt (it is a view of the scene);
     another existing ``out`` is replaced only with ``overwrite``. ``truth`` (a truth scene) adds the
     metrics. ``progress(step)`` is told which part is being built. ``scene`` and ``image`` (the input
-    RGB) are what ``generate`` already holds in memory: given, they are not read back from disk. ``side``
-    (``submit(fn, *args) -> Future`` of another process) builds the terrain plots there. ``library`` (the
+    RGB) are what ``generate`` already holds in memory: given, they are not read back from disk. ``library`` (the
     scene's, loaded) and ``top_terrain`` (``render.scene_terrain_layer`` at ``top_gsd``) spare loading and
-    rendering them again."""
+    rendering them again. ``wait(part)`` waits for what a ``generate`` is still making beside the report,
+    which builds the sections that need none of it first: "meshes" (``library``'s meshes of the scene's
+    assets), "cleaned" (returns the inpainted image, instead of reading ``cleaned.png``) and "all" (every
+    output: called before the page is written, so a failed run leaves no report)."""
     t_start = time.perf_counter()
     say = progress or (lambda _msg: None)
     scene_path = Path(scene_dir)
     scene_dir = scene_path.parent if scene_path.is_file() else scene_path
     if not scene_path.is_file():
         scene_path = scene_dir / "scene.json"
-    if not scene_path.is_file():
+    if scene is None and not scene_path.is_file():  # (generate hands its scene over before writing the JSON)
         raise InputError(f"{scene_dir} holds no scene.json; give the --out folder of `coastforge generate` "
                          "(or a scene / truth JSON file)")
     if truth is not None and not Path(truth).exists():
@@ -947,26 +1033,10 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         if m is not None and isinstance(m.get("index"), int):
             row_of_det[m["index"]] = str(k + 1)
     parts: dict[str, str] = {}
-    # The terrain plots (matplotlib, the only user of it here) are built in a second thread while the
-    # top-down render and the other sections (mostly OpenCV/NumPy, which release the GIL) are built here.
-    from concurrent.futures import ThreadPoolExecutor
-    from concurrent.futures.process import BrokenProcessPool
-
-    if side is not None:  # matplotlib holds the GIL: in another process it does not slow the render here
-        terrain_part = side(_guard, "terrain", _terrain_section,
-                            replace(scene, objects=(), vegetation=None, classes=None), scene_dir)
-    else:
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="coastforge-report")
-        terrain_part = pool.submit(_guard, "terrain", _terrain_section, scene, scene_dir)
-        pool.shutdown(wait=False)
-    say("rendering the scene from above")
-    top = _render_top(scene, assets, top_terrain)
-    parts["overview"] = _overview(image, top)
+    # sections from what is at hand first; then those needing the meshes and the inpainted image, which a
+    # generate may still be loading and making beside this
     base = _fit(image) if image is not None else None
-    say("class map and detections")
-    # the inpainted image: shown beside the class map and textures the 3D preview (read once)
-    cleaned = _read_rgb(scene_dir / "cleaned.png")  # None when absent or unreadable
-    parts["classes"] = _guard("classes", _classes_section, scene, base, cleaned)
+    say("detections")
     det_base = _upscale_small(base) if base is not None else None
     img_w = image.shape[1] if image is not None else grid.width_px
     det_scale = (det_base.shape[1] / img_w) if det_base is not None else 1.0
@@ -975,19 +1045,25 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     say("objects and asset views")
     objects_part = _guard("objects", _objects_section, scene, image, assets, links, dets)
     parts["objects"], asset_css = objects_part if isinstance(objects_part, tuple) else (objects_part, "")
-    say("terrain plots")
-    try:
-        parts["terrain"] = terrain_part.result()
-    except BrokenProcessPool:  # the side process died (killed for memory, say): draw the plots here
-        parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
+    say("terrain")
+    parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
     say("piers and vegetation")
     parts["piers"] = _guard("piers", _piers_section, scene, base)
     parts["vegetation"] = _guard("vegetation", _vegetation_section, scene)
     if truth is not None:
         say("metrics against the truth")
     parts["metrics"] = _metrics_section(scene, str(truth) if truth is not None else None)
+    say("rendering the scene from above")
+    if wait is not None:
+        wait("meshes")
+    top = _render_top(scene, assets, top_terrain)
+    parts["overview"] = _overview(image, top)
+    say("class map")
+    # the inpainted image: shown beside the class map and textures the 3D preview (None when absent)
+    cleaned_rgb = wait("cleaned") if wait is not None else _read_rgb(scene_dir / "cleaned.png")
+    parts["classes"] = _guard("classes", _classes_section, scene, base, cleaned_rgb)
     say("3D preview")
-    glb, glb_src = _glb_bytes(scene, scene_dir, assets, cleaned)
+    glb, glb_src = _glb_bytes(scene, scene_dir, assets, cleaned_rgb)
     bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js")
     bundle = bundle.read_text(encoding="utf-8")
     if glb is not None:
@@ -1025,6 +1101,8 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
 <div id="lightbox"><img alt="enlarged picture"/></div>
 <script>{bundle}</script>
 <script>{JS}</script></body></html>"""
+    if wait is not None:
+        wait("all")
     say("writing")
     if out and out_path.parent and not out_path.parent.exists():
         raise InputError(f"folder {out_path.parent} does not exist; create it or choose another --out")

@@ -671,8 +671,9 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
     from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .pipeline import (_Background, _load_library, _pier_assets, _Timer, assets_by_category, fill_under_objects,
-                           finish_generate, place_decisions, scene_provenance, write_scene_files)
+    from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, assets_by_category,
+                           fill_under_objects, make_report, object_counts, place_decisions, scene_provenance,
+                           write_scene_files)
     from .scene import save_scene
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
@@ -758,5 +759,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     scene = replace(scene, provenance={**scene.provenance, "timings_s": timings, "stage_cpu_s": dict(timer.cpu),
                                        "background_s": bg.timings()})
     scene_path = save_scene(scene, out, rasters=False)  # the rasters are written: the JSON last
-    return finish_generate(req, out, scene_path, timings, objects, len(veg.vegetation), exports)
+    report_path = make_report(req, out, timings)
+    return GenerateResult(scene_path, out, timings, object_counts(objects, len(veg.vegetation)), exports,
+                          report_path)
 
