@@ -304,7 +304,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                 bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
                 scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
                                  veg.vegetation, pier_report, decisions),
-                pending=("cleaned", "segmentation", "report_meshes"))
+                pending=("cleaned", "segmentation", "report_meshes", "scene_rasters", "pcg"))
         timings = dict(timer.t)
         timings["total"] = round(sum(timer.t.values()), 3)
         exports: dict = {}

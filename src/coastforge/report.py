@@ -24,7 +24,7 @@ from .fsio import atomic_write_text
 from .scene import Scene, SceneObject, load_scene
 
 MAX_PX = 1400  # big pictures are shown at most this wide: keeps a 100-object report far under 15 MB
-TOP_MAX_PX = 1024  # the generated scene rendered from above
+TOP_MAX_PX = 768  # the generated scene rendered from above (shown at half the page width; costs per pixel)
 THUMB_PX = 96  # crop / asset thumbnails in the objects table
 SECTIONS = ("overview", "classes", "detections", "objects", "terrain", "piers", "vegetation", "metrics",
             "provenance",
@@ -234,7 +234,7 @@ class _Assets:
 
 def top_gsd(gsd_m: float, extent_m) -> float:
     """The metres per pixel of the report's render from above. It is shown beside the input at half the page
-    width: ~1000 px is as sharp as it is ever displayed, and the procedural terrain costs per pixel."""
+    width (~550 px; ``TOP_MAX_PX`` leaves room to enlarge it), and the procedural terrain costs per pixel."""
     return max(float(gsd_m), max(float(v) for v in extent_m) / TOP_MAX_PX)
 
 
@@ -1033,37 +1033,48 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         if m is not None and isinstance(m.get("index"), int):
             row_of_det[m["index"]] = str(k + 1)
     parts: dict[str, str] = {}
-    # sections from what is at hand first; then those needing the meshes and the inpainted image, which a
-    # generate may still be loading and making beside this
     base = _fit(image) if image is not None else None
-    say("detections")
-    det_base = _upscale_small(base) if base is not None else None
-    img_w = image.shape[1] if image is not None else grid.width_px
-    det_scale = (det_base.shape[1] / img_w) if det_base is not None else 1.0
-    parts["detections"] = _guard("detections", _detections_section, det_base, dets, det_scale,
-                                 row_of_det)
-    say("objects and asset views")
-    objects_part = _guard("objects", _objects_section, scene, image, assets, links, dets)
-    parts["objects"], asset_css = objects_part if isinstance(objects_part, tuple) else (objects_part, "")
-    say("terrain")
-    parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
-    say("piers and vegetation")
-    parts["piers"] = _guard("piers", _piers_section, scene, base)
-    parts["vegetation"] = _guard("vegetation", _vegetation_section, scene)
-    if truth is not None:
-        say("metrics against the truth")
-    parts["metrics"] = _metrics_section(scene, str(truth) if truth is not None else None)
-    say("rendering the scene from above")
-    if wait is not None:
-        wait("meshes")
-    top = _render_top(scene, assets, top_terrain)
-    parts["overview"] = _overview(image, top)
-    say("class map")
-    # the inpainted image: shown beside the class map and textures the 3D preview (None when absent)
-    cleaned_rgb = wait("cleaned") if wait is not None else _read_rgb(scene_dir / "cleaned.png")
-    parts["classes"] = _guard("classes", _classes_section, scene, base, cleaned_rgb)
-    say("3D preview")
-    glb, glb_src = _glb_bytes(scene, scene_dir, assets, cleaned_rgb)
+
+    # The render from above and the 3D preview need the meshes, the class-map section and the preview the
+    # inpainted image: a generate may still be making those beside the report. They are built in two
+    # threads (mostly OpenCV and NumPy, which release the GIL), the other sections here meanwhile.
+    def top_part() -> str:
+        if wait is not None:
+            wait("meshes")
+        return _overview(image, _render_top(scene, assets, top_terrain))
+
+    def cleaned_part():
+        if wait is not None:
+            wait("meshes")
+        # the inpainted image: shown beside the class map and textures the 3D preview (None when absent)
+        cleaned = wait("cleaned") if wait is not None else _read_rgb(scene_dir / "cleaned.png")
+        return _guard("classes", _classes_section, scene, base, cleaned), _glb_bytes(scene, scene_dir, assets,
+                                                                                    cleaned)
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="coastforge-report") as pool:
+        top_job, cleaned_job = pool.submit(top_part), pool.submit(cleaned_part)
+        say("detections")
+        det_base = _upscale_small(base) if base is not None else None
+        img_w = image.shape[1] if image is not None else grid.width_px
+        det_scale = (det_base.shape[1] / img_w) if det_base is not None else 1.0
+        parts["detections"] = _guard("detections", _detections_section, det_base, dets, det_scale,
+                                     row_of_det)
+        say("objects and asset views")
+        objects_part = _guard("objects", _objects_section, scene, image, assets, links, dets)
+        parts["objects"], asset_css = objects_part if isinstance(objects_part, tuple) else (objects_part, "")
+        say("terrain")
+        parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
+        say("piers and vegetation")
+        parts["piers"] = _guard("piers", _piers_section, scene, base)
+        parts["vegetation"] = _guard("vegetation", _vegetation_section, scene)
+        if truth is not None:
+            say("metrics against the truth")
+        parts["metrics"] = _metrics_section(scene, str(truth) if truth is not None else None)
+        say("rendering the scene from above, class map and 3D preview")
+        parts["overview"] = top_job.result()
+        parts["classes"], (glb, glb_src) = cleaned_job.result()
     bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js")
     bundle = bundle.read_text(encoding="utf-8")
     if glb is not None:
