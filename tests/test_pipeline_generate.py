@@ -5,6 +5,7 @@ the exact version."""
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import replace
 
 import numpy as np
@@ -172,3 +173,20 @@ def test_biome_distances_match_scipy():
     assert (b[ids == TREES] == BIOME_IDS["woodland"]).all() and (b[ids == SAND] == BIOME_IDS["beach"]).all()
     # no waterline at all: every grass pixel is inland
     assert (biome_map(np.full((30, 30), GRASS, np.uint8), gsd) == BIOME_IDS["inland_grass"]).all()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice values are a Linux feature")
+def test_low_priority_background_jobs_run_at_a_higher_nice_value():
+    """Output files nothing waits for yield the CPU to the chain: their threads are niced (Linux)."""
+    import os
+    import threading
+
+    from coastforge.pipeline import _Background
+
+    def nice():
+        return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+
+    with _Background() as bg:
+        bg.submit("low", nice, low=True)
+        bg.submit("normal", nice)
+        assert bg.result("low") > bg.result("normal") == os.getpriority(os.PRIO_PROCESS, 0)

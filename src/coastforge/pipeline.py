@@ -11,6 +11,7 @@ import json
 import os
 import platform
 import sys
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -304,7 +305,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                 bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
                 scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
                                  veg.vegetation, pier_report, decisions),
-                pending=("cleaned", "segmentation", "report_meshes", "scene_rasters", "pcg"))
+                pending=("cleaned", "segmentation", "report_meshes", "scene_rasters", "pcg", "terrain_outputs"))
         timings = dict(timer.t)
         timings["total"] = round(sum(timer.t.values()), 3)
         exports: dict = {}
@@ -320,11 +321,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             timings["total"] = round(timings["total"] + timings["export"], 3)
 
         def wait(part: str):
-            if part == "meshes":
-                return bg.result("report_meshes") if req.report else None
-            if part == "cleaned":
-                return bg.result("cleaned")
-            return bg.wait()
+            job = {"meshes": "report_meshes", "cleaned": "cleaned", "terrain": "terrain_outputs"}.get(part)
+            return bg.result(job) if job else bg.wait()
 
         report_path = make_report(req, out, timings, scene=_with_timings(scene, timings, timer, bg),
                                   image=image.rgb, library=library,
@@ -375,7 +373,7 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
         classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
         provenance=provenance)
     _write_vegetation_outputs(bg, out, veg)
-    bg.submit("scene_rasters", save_scene_rasters, scene, out)
+    bg.submit("scene_rasters", save_scene_rasters, scene, out, low=True)
     bg.wait(skip=pending)  # re-raises the first failed job
     return scene
 
@@ -417,10 +415,14 @@ class _Background:
     two cores the side rasters are encoded while the next stage computes. ``result``/``wait`` re-raise a
     job's exception; leaving the block waits for every job (nothing is left writing behind the caller)."""
 
-    def __init__(self, workers: int = 3):
+    def __init__(self, workers: int = 3, low_workers: int = 2):
         from concurrent.futures import ThreadPoolExecutor
 
         self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="coastforge-bg")
+        # output files nothing waits for until the end, in threads the OS runs only when a core is free of
+        # the chain's work (and the side process's): they fill its idle moments instead of slowing it
+        self._low = ThreadPoolExecutor(max_workers=low_workers, thread_name_prefix="coastforge-bg-low",
+                                       initializer=_lower_thread_priority)
         self._jobs: dict = {}
         self._t: dict[str, dict] = {}
 
@@ -428,10 +430,12 @@ class _Background:
         return self
 
     def __exit__(self, *exc):
-        self._pool.shutdown(wait=True, cancel_futures=exc[0] is not None)
+        for pool in (self._pool, self._low):
+            pool.shutdown(wait=True, cancel_futures=exc[0] is not None)
         return False
 
-    def submit(self, name: str, fn, *args, **kw) -> None:
+    def submit(self, name: str, fn, *args, low: bool = False, **kw) -> None:
+        """Run ``fn(*args, **kw)`` as job ``name``; ``low``: at a lower CPU priority (Linux)."""
         def timed():
             t0, c0 = time.perf_counter(), time.thread_time()
             try:
@@ -439,7 +443,7 @@ class _Background:
             finally:  # wall and this thread's CPU time: their gap is time spent waiting for a core
                 self._t[name] = {"wall": round(time.perf_counter() - t0, 3), "cpu": round(time.thread_time() - c0, 3)}
 
-        self._jobs[name] = self._pool.submit(timed)
+        self._jobs[name] = (self._low if low else self._pool).submit(timed)
 
     def result(self, name: str):
         return self._jobs[name].result()
@@ -451,6 +455,16 @@ class _Background:
 
     def timings(self) -> dict[str, dict]:
         return dict(sorted(self._t.items()))
+
+
+def _lower_thread_priority(nice: int = 10) -> None:
+    """Give the calling thread a higher nice value (Linux schedules threads on their own; elsewhere
+    ``setpriority`` would take the id for a process's, so nothing is done)."""
+    if sys.platform.startswith("linux") and hasattr(os, "setpriority"):
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
+        except OSError:
+            pass
 
 
 # images at least this big (pixels) get a side process; below, its start-up costs more than it saves
@@ -569,14 +583,14 @@ def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_ma
         bg.submit("cleaned", side.run, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
     else:
         bg.submit("cleaned", _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
-    bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, image, config.segment)
+    bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, image, config.segment, low=True)
 
 
 def _write_terrain_outputs(bg: _Background, out: Path, terrain) -> None:
     """Hillshade, shore types and cross-sections, in the background."""
     from .terrain.outputs import write_terrain_outputs
 
-    bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain)
+    bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain, low=True)
 
 
 def _write_vegetation_outputs(bg: _Background, out: Path, veg) -> None:
@@ -587,4 +601,4 @@ def _write_vegetation_outputs(bg: _Background, out: Path, veg) -> None:
         for name, mask in veg.masks.items():
             write_png(out / "pcg" / f"{name}.png", mask)
 
-    bg.submit("pcg", masks)
+    bg.submit("pcg", masks, low=True)

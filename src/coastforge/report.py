@@ -995,8 +995,9 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     scene's, loaded) and ``top_terrain`` (``render.scene_terrain_layer`` at ``top_gsd``) spare loading and
     rendering them again. ``wait(part)`` waits for what a ``generate`` is still making beside the report,
     which builds the sections that need none of it first: "meshes" (``library``'s meshes of the scene's
-    assets), "cleaned" (returns the inpainted image, instead of reading ``cleaned.png``) and "all" (every
-    output: called before the page is written, so a failed run leaves no report)."""
+    assets), "cleaned" (returns the inpainted image, instead of reading ``cleaned.png``), "terrain" (the
+    terrain stage's outputs, for the cross-sections) and "all" (every output: called before the page is
+    written, so a failed run leaves no report)."""
     t_start = time.perf_counter()
     say = progress or (lambda _msg: None)
     scene_path = Path(scene_dir)
@@ -1065,6 +1066,8 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         objects_part = _guard("objects", _objects_section, scene, image, assets, links, dets)
         parts["objects"], asset_css = objects_part if isinstance(objects_part, tuple) else (objects_part, "")
         say("terrain")
+        if wait is not None:
+            wait("terrain")
         parts["terrain"] = _guard("terrain", _terrain_section, scene, scene_dir)
         say("piers and vegetation")
         parts["piers"] = _guard("piers", _piers_section, scene, base)
