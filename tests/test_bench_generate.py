@@ -19,7 +19,7 @@ def test_generate_benchmark_reports_wall_memory_and_stages(tmp_path, capsys):
     assert res["image_px"] == 256 and res["report"] is False
     assert res["wall_s"][0] > 0 and res["peak_gb"] > 0.05  # a Python process with numpy is > 50 MB
     assert {"segment", "detect", "terrain", "total"} <= set(res["best_run_stages_s"])
-    assert res["calibration_s"] > 0 and res["calibration_end_s"] > 0 and res["calibration_2_processes_s"] > 0
+    assert res["calibration_s"] > 0 and res["calibration_end_s"] > 0 and res["calibration_one_thread_s"]["two_processes_at_once"] > 0
 
 
 def test_generate_benchmark_refuses_nonsense(capsys):
