@@ -62,3 +62,32 @@ def test_without_water_in_the_map_nor_in_the_image_boats_are_on_land():
     # the image shows a sea the segmenter missed (300 x 400 px = 1875 m²): nothing is decided
     kept = boats_off_water([car, buoy], _map(0), GSD, DetectConfig(), rgb=_rgb(300))
     assert [d.category for d in kept] == ["boat", "buoy"]
+
+
+def test_vehicles_on_riprap_or_water_go():
+    """A breakwater: a 2 m walkway between riprap, water beyond. Car-sized boxes on its riprap (the learned
+    net took the blocks for cars) or in the water go; a car on the walkway, one at the quay's edge and one on
+    the car park stay; boats are not concerned."""
+    from coastforge.classes import ROCKS, SIDEWALK
+    from coastforge.detection import vehicles_off_land
+
+    ids = np.full((400, 800), WATER, np.uint8)
+    ids[200:400, :] = ASPHALT  # a quay and car park in the south half
+    ids[60:156, :] = ROCKS  # a breakwater: riprap ...
+    ids[100:116, :] = SIDEWALK  # ... around a 2 m walkway
+    cm = ClassMap(ids, Grid(800, 400, GSD))
+
+    def car(cx, cy, yaw=0.0):
+        return Detection("vehicle", 0.7, float(cx), float(cy), 4.6 / GSD, 1.9 / GSD, yaw)
+
+    on_riprap = car(300, 80)
+    half_on_riprap = car(500, 117.5)  # about 60 % on the riprap, 40 % on the walkway
+    in_water = car(300, 30)
+    on_walkway = car(400, 108)  # the walkway is 16 px wide, the car 15 px
+    at_quay_edge = car(300, 212)  # water right north of it, asphalt under it
+    in_car_park = car(300, 320, yaw=90.0)
+    boat = Detection("boat", 0.8, 600.0, 30.0, 6 / GSD, 2.4 / GSD, 0.0)
+    dets = [on_riprap, half_on_riprap, in_water, on_walkway, at_quay_edge, in_car_park, boat]
+    assert vehicles_off_land(dets, cm) == [on_walkway, at_quay_edge, in_car_park, boat]
+    assert vehicles_off_land(dets, cm, max_wet=0.7) == [half_on_riprap, on_walkway, at_quay_edge, in_car_park,
+                                                        boat]

@@ -64,6 +64,8 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
             dets = vehicle_fronts(rgb, dets)
     if class_map is not None and config.boats_need_water:
         dets = boats_off_water(dets, class_map, image.grid.gsd_m, config, rgb=rgb)
+    if class_map is not None and config.vehicle_max_wet > 0:
+        dets = vehicles_off_land(dets, class_map, config.vehicle_max_wet)
     out = []
     for d in dets:
         if d.category not in DETECTION_CATEGORIES:
@@ -134,6 +136,21 @@ def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, co
         if (d.category == "boat" and config.min_vehicle_length_m <= length_m <= config.max_vehicle_length_m
                 and 1.3 <= width_m <= 3.0 and paved >= 0.5):
             out.append(replace(d, category="vehicle", heading_known=False, heading_confidence=0.5))
+    return out
+
+
+def vehicles_off_land(dets: list[Detection], class_map: ClassMap, max_wet: float = 0.5) -> list[Detection]:
+    """Vehicles whose box is at least ``max_wet`` water or rock are dropped: cars do not stand on riprap
+    (the learned net takes the blocks of a breakwater's revetment for parked cars) or in the water."""
+    from ..classes import ROCKS, WATER
+
+    out = []
+    for d in dets:
+        if d.category == "vehicle":
+            under = values_under_box(class_map.ids, d)
+            if under.size and np.isin(under, (WATER, ROCKS)).mean() >= max_wet:
+                continue
+        out.append(d)
     return out
 
 
