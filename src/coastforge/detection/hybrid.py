@@ -108,7 +108,8 @@ class HybridDetector:
             # a classical boat is kept only where the net also sees a boat, if weakly (score >= support):
             # on the synthetic levels nearly every classical-only boat is a pier deck, a cabin or a
             # sliver beside a boat; on the real marina the net's weak peaks confirm most true ones
-            extra = _supported(extra, [d for d in learned if d.category == "boat"])
+            weak = [d for d in learned if d.category == "boat"]
+            extra = _defragment(_supported(extra, weak), weak)
         extra = _not_decks(image.rgb, extra, piers)
         extra = _afloat(extra, class_map, image.grid.width_px, image.grid.height_px)
         # learned boxes first, so on overlap the learned box (better orientation and heading) survives;
@@ -170,6 +171,22 @@ def _supported_by(boxes: list[Detection], evidence: list[Detection]) -> list[Det
         return []
     hit = _inside(boxes, evidence).any(0)
     return [e for e, h in zip(evidence, hit) if h]
+
+
+FRAGMENT_RATIO = 0.7  # a classical boat this much shorter than the net's box around it is a piece of it
+
+
+def _defragment(boxes: list[Detection], net: list[Detection]) -> list[Detection]:
+    """Classical boats whose centre lies in a (weak) net box at least 1 / ``FRAGMENT_RATIO`` times longer are
+    pieces of that boat (its mask split at a dark deck or a shadow): the net's box replaces them."""
+    if not boxes or not net:
+        return boxes
+    inside = _inside(net, boxes)  # (net, boxes)
+    out = []
+    for j, b in enumerate(boxes):
+        around = [net[i] for i in np.flatnonzero(inside[:, j]) if b.length_px < FRAGMENT_RATIO * net[i].length_px]
+        out.append(max(around, key=lambda d: d.score) if around else b)
+    return out
 
 
 def _supported(boxes: list[Detection], evidence: list[Detection]) -> list[Detection]:
