@@ -244,10 +244,11 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
 
     seed = config.seed
     grid = image.grid
-    # Independent work runs beside the main chain (segment → detect → terrain → piers → placement →
-    # vegetation): the library loads while segmentation and detection run; matching (it needs the library
-    # and the detections, not the terrain) runs beside terrain and piers; the cleaned image is only an
-    # output; every side raster is written as soon as its stage is done.
+    # Independent work runs beside the main chain (segment → detect → terrain → piers → vegetation →
+    # placement): the library loads while segmentation and detection run; matching (it needs the library
+    # and the detections, not the terrain) runs beside terrain, piers and vegetation; the cleaned image is
+    # needed only by the report, which waits for it last; every side raster is written as soon as its stage
+    # is done.
     # threads that wait on the side process hold a worker: room for those and the CPU-bound jobs
     with _Background(workers=8) as bg:
         bg.submit("library", _load_library, req.library)
@@ -572,8 +573,8 @@ class _SideProcess:
 
 def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,
                            seed: int, side: _SideProcess | None = None) -> None:
-    """detections.json now; the cleaned image (transient objects removed: an output only, no later stage
-    reads it) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
+    """detections.json now; the cleaned image (transient objects removed: no later stage reads it, only the
+    report) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
     from .detection import detections_to_json
     from .segmentation.outputs import write_segmentation
 

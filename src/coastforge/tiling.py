@@ -671,9 +671,9 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
     from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, assets_by_category,
-                           fill_under_objects, make_report, object_counts, place_decisions, scene_provenance,
-                           write_scene_files)
+    from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, _with_timings,
+                           assets_by_category, fill_under_objects, make_report, object_counts, place_decisions,
+                           scene_provenance, write_scene_files)
     from .scene import save_scene
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
@@ -756,9 +756,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
                                    library=library)
     timings = dict(timer.t)
     timings["total"] = round(sum(timer.t.values()), 3)
-    scene = replace(scene, provenance={**scene.provenance, "timings_s": timings, "stage_cpu_s": dict(timer.cpu),
-                                       "background_s": bg.timings()})
-    scene_path = save_scene(scene, out, rasters=False)  # the rasters are written: the JSON last
+    scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)  # the JSON last
     report_path = make_report(req, out, timings)
     return GenerateResult(scene_path, out, timings, object_counts(objects, len(veg.vegetation)), exports,
                           report_path)
