@@ -166,3 +166,40 @@ def test_floor_adds_weaker_boxes_after_the_same_confident_ones(tiny_level):
     weak = [d for d in both if not det.is_confident(d)]
     assert weak and all(0.05 <= d.score < det.class_threshold[d.category] for d in weak)
     assert key(det.detect(img, None, 0)) == key(strong)  # the floor does not stick
+
+
+def test_training_starts_exactly_from_an_exported_onnx(tmp_path):
+    """``train_detector --init detector.onnx``: the BatchNorms the export folded away are rebuilt so that
+    the torch network computes what the ONNX model does, and a model of another shape is refused."""
+    torch = pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    import onnxruntime as ort
+
+    from coastforge.train.detector_model import build_model
+    from coastforge.train.train_detector import export_onnx, init_from_onnx
+
+    torch.manual_seed(0)
+    src = build_model(8)
+    src.train()
+    with torch.no_grad():  # non-trivial BatchNorm statistics, so that the folding matters
+        for _ in range(3):
+            src(torch.rand(2, 3, 64, 64) * 2.0)
+    path = export_onnx(src, tmp_path / "detector.onnx")
+
+    class Crops:
+        rng = np.random.default_rng(0)
+
+        def sample(self):
+            return self.rng.integers(0, 256, (48, 48, 3), dtype=np.uint8), np.zeros((0, 6))
+
+    net = build_model(8)
+    assert init_from_onnx(torch, net, path, Crops(), batches=2) < 1e-3
+    x = np.random.default_rng(1).integers(0, 256, (1, 3, 64, 64)).astype(np.float32)
+    heat, _peaks, reg = ort.InferenceSession(str(path)).run(None, {"image": x})
+    net.eval()
+    with torch.no_grad():
+        y = net(torch.from_numpy(x) / 255.0).numpy()
+    np.testing.assert_allclose(1.0 / (1.0 + np.exp(-y[:, :3])), heat, atol=1e-4)
+    np.testing.assert_allclose(y[:, 3:], reg, atol=1e-3)
+    with pytest.raises(InputError, match="expected"):
+        init_from_onnx(torch, build_model(16), path, Crops(), batches=1)

@@ -190,3 +190,27 @@ def test_low_priority_background_jobs_run_at_a_higher_nice_value():
         bg.submit("low", nice, low=True)
         bg.submit("normal", nice)
         assert bg.result("low") > bg.result("normal") == os.getpriority(os.PRIO_PROCESS, 0)
+
+
+def test_fill_under_a_row_of_dark_cars_is_the_pavement_not_the_neighbours():
+    """A row of dark parked cars segmented as trees: each car's surroundings, leaving out its neighbours'
+    boxes, are asphalt aisle and a strip of grass; the fill is asphalt, and a boat still gets water."""
+    from coastforge.classes import ASPHALT, GRASS, TREES, WATER
+    from coastforge.pipeline import fill_under_objects
+    from coastforge.types import ClassMap, Detection, Grid
+
+    ids = np.full((60, 80), ASPHALT, np.uint8)
+    ids[14:18, :] = GRASS  # planting strip behind the row
+    ids[12:32, :6] = TREES  # a tree at each end of the row
+    ids[12:32, 58:66] = TREES
+    ids[40:, :] = WATER
+    cars = [Detection("vehicle", 0.9, 10.0 + 9.0 * k, 23.0, 10.0, 7.0, 90.0) for k in range(6)]
+    for d in cars:  # dark roofs taken for tree crowns, touching from car to car
+        ids[18:28, int(d.cx_px) - 4:int(d.cx_px) + 5] = TREES
+    boat = Detection("boat", 0.9, 40.0, 50.0, 12.0, 4.0, 0.0)
+    ids[48:53, 34:47] = TREES  # a dark deck
+    out = fill_under_objects(ClassMap(ids, Grid(80, 60, 0.2)), cars + [boat]).ids
+    assert (out[19:27, 8:56] == ASPHALT).all()
+    assert (out[48:53, 35:46] == WATER).all()
+    assert (out[14:18, 66:] == GRASS).all()  # outside the boxes nothing changes
+    assert (out[12:32, :4] == TREES).all()

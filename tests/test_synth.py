@@ -277,3 +277,21 @@ def test_library_assets_fill_the_layout_roles(monkeypatch, tmp_path):
     assert by_cat["vehicle"] == {"lib_sedan"}
     assert by_cat["pier"] <= {"pier_walkway", "pier_finger"}  # roles the library cannot fill keep the kit
     assert truth.provenance["library"] == str(tmp_path)
+
+
+def test_training_mix_shows_the_rare_types_and_leaves_benchmark_levels_alone():
+    """The detector's training data draws buses, box trucks, hatchbacks and small boats often; the
+    benchmark's levels (default mix) never get the types they did not have before."""
+    from collections import Counter
+
+    from coastforge.synth_layout import TRAINING_MIX
+
+    bench, train = Counter(), Counter()
+    for preset, seed in (("marina", 201), ("pier_parking", 202), ("marina", 203), ("lake_harbor", 204)):
+        bench.update(o.asset_id for o in synthesize_level(preset, seed, size_m=110).scene.objects)
+        level = synthesize_level(preset, seed, size_m=110, mix=TRAINING_MIX)
+        train.update(o.asset_id for o in level.scene.objects)
+    new = ("hatchback", "box_truck", "rowboat", "center_console")
+    assert not any(bench[t] for t in new)
+    assert train["hatchback"] >= 3 and train["bus"] + train["box_truck"] >= 1
+    assert train["rowboat"] + train["center_console"] + train["dinghy"] + train["kayak"] >= 5

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from . import __version__
-from .classes import WATER
+from .classes import PAVED, WATER
 from .config import Config
 from .fsio import atomic_write_text, prepare_output_dir
 from .scene import Scene, SceneObject, save_scene, save_scene_rasters
@@ -78,16 +78,25 @@ class _Timer:
 
 def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: float = 2.0) -> ClassMap:
     """Classes under transient objects (boats, vehicles) and pier decks are what surrounds them: a boat sits on
-    water, a car on asphalt, and a pier deck over water must not become land in the height map."""
+    water, a car on asphalt, and a pier deck over water must not become land in the height map.
+
+    "Around" leaves out the other detected boxes: in a row of dark parked cars the neighbours (often
+    segmented as trees) are no evidence of the ground. A vehicle takes the paved class when its free
+    surroundings show pavement at all, since cars stand on roads and car parks, not in tree crowns."""
     import cv2
 
     ids = class_map.ids.copy()
     h, w = ids.shape
+    boxes = []
+    taken = np.zeros((h, w), np.uint8)  # every detected box, grown by the margin
     for d in dets:
         grow = margin_px
         corners = Detection(d.category, d.score, d.cx_px, d.cy_px, d.length_px + 2 * grow, d.width_px + 2 * grow,
                             d.yaw_deg).corners_px()
         poly = np.round(corners).astype(np.int32)
+        boxes.append(poly)
+        cv2.fillPoly(taken, [poly], 1)
+    for d, poly in zip(dets, boxes):
         x0, y0 = np.maximum(poly.min(0) - 4, 0)
         x1, y1 = np.minimum(poly.max(0) + 5, [w, h])
         if x1 <= x0 or y1 <= y0:
@@ -96,7 +105,8 @@ def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: fl
         cv2.fillPoly(inner, [poly - [x0, y0]], 1)
         ring = cv2.dilate(inner, np.ones((7, 7), np.uint8)) & (1 - inner)
         sub = ids[y0:y1, x0:x1]
-        around = sub[ring.astype(bool)]
+        free = ring & (1 - taken[y0:y1, x0:x1])
+        around = sub[(free if free.sum() >= 0.2 * ring.sum() else ring).astype(bool)]
         if around.size == 0:
             continue
         counts = np.bincount(around, minlength=8)
@@ -105,6 +115,8 @@ def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: fl
             if counts[WATER] < 0.35 * around.size:
                 continue
             fill = WATER
+        elif d.category == "vehicle" and counts[list(PAVED)].sum() >= 0.15 * around.size:
+            fill = int(PAVED[int(np.argmax(counts[list(PAVED)]))])
         else:
             fill = int(counts.argmax())
         sub[inner.astype(bool)] = fill

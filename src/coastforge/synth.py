@@ -24,6 +24,7 @@ from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, TREES, WATER
 from .errors import InputError
 from .rng import stage_rng
 from .scene import Scene, SceneObject, Vegetation
+from .synth_layout import BENCHMARK_MIX, Mix
 
 PRESETS: tuple[str, ...] = ("simple_pier_a", "simple_pier_b", "pier_parking", "marina", "lake_harbor",
                             "beach", "rocky_shore")
@@ -313,8 +314,10 @@ class SynthLevel:
 
 
 def synthesize_level(preset: str, seed: int, *, size_m: float | None = None, grid_m: float = DEFAULT_GRID_M,
-                     library: str | Path | None = None) -> SynthLevel:
-    """Lay out and rasterize one level (see ``synthesize``), keeping the layout for the renderer."""
+                     library: str | Path | None = None, mix: Mix | None = None) -> SynthLevel:
+    """Lay out and rasterize one level (see ``synthesize``), keeping the layout for the renderer.
+
+    ``mix`` (default: the benchmark's) sets which asset types are drawn how often (``synth_layout.Mix``)."""
     from .synth_presets import build_layout
     from .synth_terrain import truth_heights
 
@@ -331,7 +334,8 @@ def synthesize_level(preset: str, seed: int, *, size_m: float | None = None, gri
     if missing:
         raise InputError(f"the asset set lacks {missing}; synth needs the starter kit's ids "
                          "(or a library with them)")
-    layout, tparams, info = build_layout(preset, stage_rng(seed, "synth", preset, "layout"), catalog, size_m)
+    layout, tparams, info = build_layout(preset, stage_rng(seed, "synth", preset, "layout"), catalog, size_m,
+                                         mix or BENCHMARK_MIX)
     classes = rasterize(layout, grid_m)
     height = truth_heights(classes, grid_m, tparams, stage_rng(seed, "synth", preset, "terrain"))
     dropped: list[str] = []

@@ -106,11 +106,40 @@ class Decor:
     wakes: list = field(default_factory=list)  # (u, v, yaw_local, length_m, beam_m)
 
 
+@dataclass(frozen=True)
+class Mix:
+    """Which asset types a level draws and how often. The benchmark's levels use the defaults; training
+    data for the learned detector uses ``TRAINING_MIX``, which shows the rare types (buses, small boats,
+    the kit's hatchback and box truck) often enough to be learned without changing any benchmark level."""
+
+    car_types: tuple[str, ...] = ("sedan", "sedan", "sedan", "suv", "suv", "pickup", "van")
+    boat_prior: tuple[tuple[str, float], ...] = (
+        ("sailboat", 1.0), ("cabin_cruiser", 1.0), ("runabout", 0.8), ("yacht", 0.45), ("fishing_boat", 0.5),
+        ("dinghy", 0.35), ("catamaran", 0.25), ("kayak", 0.3))
+    extra_boats: tuple[str, ...] = ()  # added to every berth's and anchorage's choice of boat types
+    bus_p: float = 0.35  # a bus beside a car park's last row
+    aisle_p: float = 0.0  # a large vehicle (bus, box truck) driving along a car park's aisle
+
+    def prior(self, asset_id: str) -> float:
+        return dict(self.boat_prior).get(asset_id, 0.5)
+
+
+BENCHMARK_MIX = Mix()
+TRAINING_MIX = Mix(
+    car_types=("sedan", "sedan", "suv", "suv", "pickup", "van", "hatchback", "hatchback", "box_truck", "bus"),
+    boat_prior=(("sailboat", 1.0), ("cabin_cruiser", 1.0), ("runabout", 0.8), ("yacht", 0.45),
+                ("fishing_boat", 0.5), ("dinghy", 0.9), ("catamaran", 0.4), ("kayak", 0.7), ("rowboat", 0.6),
+                ("center_console", 0.7)),
+    extra_boats=("dinghy", "kayak", "rowboat", "center_console"),
+    bus_p=0.85, aisle_p=0.6)
+
+
 class Layout:
     """A level under construction in the local shore frame."""
 
     def __init__(self, size_m: float, theta_deg: float, shore_u: np.ndarray, shore_v: np.ndarray,
-                 catalog: dict[str, AssetDims], rng: np.random.Generator):
+                 catalog: dict[str, AssetDims], rng: np.random.Generator, mix: Mix = BENCHMARK_MIX):
+        self.mix = mix
         self.size_m = float(size_m)
         self.theta_deg = float(theta_deg)
         self.catalog = catalog
@@ -246,14 +275,13 @@ class Layout:
 
 
 BOAT_SLIP_TYPES = ("dinghy", "runabout", "cabin_cruiser", "sailboat", "fishing_boat", "yacht", "catamaran")
-BOAT_PRIOR = {"sailboat": 1.0, "cabin_cruiser": 1.0, "runabout": 0.8, "yacht": 0.45, "fishing_boat": 0.5,
-              "dinghy": 0.35, "catamaran": 0.25, "kayak": 0.3}
 
 
 def pick_boat(layout: Layout, rng: np.random.Generator, max_len: float, max_beam: float, min_len: float = 0.0,
               types: tuple[str, ...] = BOAT_SLIP_TYPES) -> tuple[str, float] | None:
     """A boat type and scale that fits a berth of ``max_len`` × ``max_beam`` (None if nothing fits)."""
     cands = []
+    types = tuple(types) + tuple(t for t in layout.mix.extra_boats if t not in types)
     for t in types:
         if t not in layout.catalog:
             continue
@@ -268,7 +296,7 @@ def pick_boat(layout: Layout, rng: np.random.Generator, max_len: float, max_beam
         return pick_boat(layout, rng, max_len, max_beam, 0.0, types) if min_len > 0 else None
     # prefer boats that use the berth well (a 4 m dinghy in a 15 m slip is rare), and the types that
     # are common in leisure marinas (work boats and catamarans are the exception there)
-    w = np.array([(0.25 + (L / max_len) ** 2) * BOAT_PRIOR.get(t, 0.5) for t, _s, L in cands])
+    w = np.array([(0.25 + (L / max_len) ** 2) * layout.mix.prior(t) for t, _s, L in cands])
     t, s, _L = cands[int(rng.choice(len(cands), p=w / w.sum()))]
     return t, float(s * rng.uniform(0.96, 1.04) if s * 1.04 * layout.catalog[t].length_m <= max_len else s)
 
@@ -477,7 +505,7 @@ def add_anchored(layout: Layout, rng: np.random.Generator, count: int, wind_deg:
     for u, v in pts:
         if placed >= count:
             break
-        t_id = str(rng.choice([t for t in types if t in layout.catalog]))
+        t_id = str(rng.choice([t for t in types + layout.mix.extra_boats if t in layout.catalog]))
         sc = float(rng.uniform(0.9, 1.1))
         yaw = wind_deg + rng.normal(0, 35.0)
         mooring = rng.random() < buoy_p
@@ -532,9 +560,6 @@ def add_underway(layout: Layout, rng: np.random.Generator, count: int, types: tu
 # ---------------------------------------------------------------- parking
 
 
-CAR_TYPES = ("sedan", "sedan", "sedan", "suv", "suv", "pickup", "van")
-
-
 def add_parking(layout: Layout, rng: np.random.Generator, cu: float, cv: float, length: float, depth: float,
                 yaw_local: float, occupancy: float, lot_id: str, sidewalk_w: float = 2.0) -> Polygon | None:
     """An asphalt lot (with a sidewalk border) of rows of 2.5 × 5.2 m bays, cars parked either way."""
@@ -569,7 +594,7 @@ def add_parking(layout: Layout, rng: np.random.Generator, cu: float, cv: float, 
         for k in range(nb):
             if rng.random() > occupancy:
                 continue
-            t_id = str(rng.choice([t for t in CAR_TYPES if t in layout.catalog]))
+            t_id = str(rng.choice([t for t in layout.mix.car_types if t in layout.catalog]))
             cd = layout.dims(t_id)
             sc = float(rng.uniform(0.96, 1.04))
             if cd.length_m * sc > bay_d + 0.3 or cd.width_m * sc > bay_w - 0.2:
@@ -584,8 +609,20 @@ def add_parking(layout: Layout, rng: np.random.Generator, cu: float, cv: float, 
                 continue
             layout.add_object("car", "vehicle", t_id, p[0], p[1], yaw, sc, "terrain",
                               {"lot": lot_id, "nose": "in" if nose_to_back else "out"})
+    # a large vehicle (bus, box truck) driving through the lot: only in the training mix (rare in the
+    # benchmark's levels); it goes where it finds room, which is the aisle or the free side of a row
+    if layout.mix.aisle_p > 0 and rng.random() < layout.mix.aisle_p:
+        t_id = str(rng.choice([t for t in ("bus", "box_truck") if t in layout.catalog] or ["van"]))
+        d = layout.dims(t_id)
+        for _ in range(12):
+            p = c + ax * rng.uniform(-length / 3, length / 3) + ay * rng.uniform(-depth / 2, depth / 2)
+            yaw = angle_of(*ax) + (180.0 if rng.random() < 0.5 else 0.0) + rng.normal(0, 2.0)
+            fp = obox(p[0], p[1], d.length_m, d.width_m, yaw)
+            if lot.contains(fp) and layout.in_scene(fp, 0.5) and layout.is_free(fp, 0.3):
+                layout.add_object("car", "vehicle", t_id, p[0], p[1], yaw, 1.0, "terrain", {"lot": lot_id})
+                break
     # a bus or van parked along the lot edge beside the last row, sometimes
-    if "bus" in layout.catalog and rng.random() < 0.35:
+    if "bus" in layout.catalog and rng.random() < layout.mix.bus_p:
         bd = layout.dims("bus")
         edge = depth / 2 - bd.width_m / 2 - 0.6
         if rows and edge > rows[-1][0] + bay_d / 2 + bd.width_m / 2 + 0.5:
@@ -607,7 +644,7 @@ def add_street_parking(layout: Layout, rng: np.random.Generator, road: LineStrin
         p1 = np.array(road.interpolate(min(length, t + 1)).coords[0])
         tang = (p1 - p0) / (np.linalg.norm(p1 - p0) + 1e-9)
         nrm = np.array([-tang[1], tang[0]])
-        t_id = str(rng.choice([t_ for t_ in CAR_TYPES if t_ in layout.catalog]))
+        t_id = str(rng.choice([t_ for t_ in layout.mix.car_types if t_ in layout.catalog]))
         cd = layout.dims(t_id)
         step = cd.length_m + rng.uniform(1.0, 2.5)
         if rng.random() < occupancy:

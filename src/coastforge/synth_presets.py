@@ -15,8 +15,8 @@ from shapely.geometry import LineString, Point
 
 from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES
 from .synth_layout import (
-    AssetDims, Layout, PierSpec, add_anchored, add_buoy, add_parking, add_pier, add_street_parking,
-    add_underway, obox, open_water_points, scatter_patches, wiggly_line,
+    BENCHMARK_MIX, AssetDims, Layout, Mix, PierSpec, add_anchored, add_buoy, add_parking, add_pier,
+    add_street_parking, add_underway, obox, open_water_points, scatter_patches, wiggly_line,
 )
 from .synth_terrain import TruthTerrainParams
 
@@ -417,7 +417,8 @@ PRESET_DEFS: dict[str, PresetDef] = {
 
 
 def build_layout(preset: str, rng: np.random.Generator, catalog: dict[str, AssetDims],
-                 size_m: float | None = None) -> tuple[Layout, TruthTerrainParams, dict]:
+                 size_m: float | None = None,
+                 mix: Mix = BENCHMARK_MIX) -> tuple[Layout, TruthTerrainParams, dict]:
     """Lay out one level: returns the layout (local frame), its truth-terrain parameters and the
     drawn level parameters (for the provenance)."""
     fn, size_rng, v0_rng, amp_rng, wl_rng, terr = PRESET_DEFS[preset]
@@ -427,7 +428,7 @@ def build_layout(preset: str, rng: np.random.Generator, catalog: dict[str, Asset
     amp, wl = float(rng.uniform(*amp_rng)), float(rng.uniform(*wl_rng))
     slope = float(rng.uniform(-0.05, 0.05))
     us, vs = shore_curve(rng, S * 0.8, v0, amp, wl, slope)
-    L = Layout(S, theta, us, vs, catalog, rng)
+    L = Layout(S, theta, us, vs, catalog, rng, mix)
     tp = terrain_params(rng, **{k: float(rng.uniform(*v)) for k, v in terr.items()})
     info = {"size_m": S, "rotation_deg": theta, "shore_offset_m": v0, "shore_amplitude_m": amp,
             "shore_wavelength_m": wl, **fn(L, rng, S)}

@@ -82,12 +82,16 @@ def render_levels(out_dir: str | Path, seeds: list[int], make_item: MakeItem, *,
 
 
 def data_main(argv: list[str] | None, description: str, default_seeds: str,
-              generate: Callable[..., Path]) -> None:
-    """The shared command line: ``--out DIR --seeds A:B [--minutes M]``."""
+              generate: Callable[..., Path], mix_option: bool = False) -> None:
+    """The shared command line: ``--out DIR --seeds A:B [--minutes M]`` (and ``--mix NAME`` if asked)."""
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--out", required=True, help="output folder (resumable: written levels are skipped)")
     ap.add_argument("--seeds", default=default_seeds,
                     help="'A:B' (half-open) or a comma list; seeds below 100 are refused")
     ap.add_argument("--minutes", type=float, default=None, help="stop starting new levels after this long")
+    if mix_option:
+        ap.add_argument("--mix", choices=("benchmark", "training"), default="benchmark",
+                        help="asset types as in the benchmark's levels, or with rare ones shown more often")
     a = ap.parse_args(argv)
-    generate(a.out, parse_seeds(a.seeds), minutes=a.minutes)
+    kw = {"mix": a.mix} if mix_option else {}
+    generate(a.out, parse_seeds(a.seeds), minutes=a.minutes, **kw)

@@ -33,13 +33,18 @@ def resample_to_gsd(rgb: np.ndarray, gsd_m: float, work_gsd_m: float = WORK_GSD_
 
 
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
-                 work_gsd_m: float = WORK_GSD_M) -> tuple[np.ndarray, list[list[float]]]:
-    """One synthetic level rendered at ``gsd_m`` and resampled to ``work_gsd_m``: (rgb, boxes)."""
+                 work_gsd_m: float = WORK_GSD_M,
+                 mix: str = "benchmark") -> tuple[np.ndarray, list[list[float]]]:
+    """One synthetic level rendered at ``gsd_m`` and resampled to ``work_gsd_m``: (rgb, boxes).
+
+    ``mix="training"`` draws the rare asset types more often (``synth_layout.TRAINING_MIX``)."""
     from .. import frames
     from ..synth import synthesize_level
+    from ..synth_layout import BENCHMARK_MIX, TRAINING_MIX
     from ..synth_render import mesh_source, render_level
 
-    level = synthesize_level(preset, seed, size_m=size_m)
+    level = synthesize_level(preset, seed, size_m=size_m,
+                             mix=TRAINING_MIX if mix == "training" else BENCHMARK_MIX)
     rgb = render_level(level, mesh_source(None), gsd_m, seed)
     sx, sy = level.scene.extent_m
     work, _ = resample_to_gsd(rgb, sx / rgb.shape[1], work_gsd_m)
@@ -60,27 +65,28 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
 
 
 def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
-             gsd_range: tuple[float, float] = (0.08, 0.3), minutes: float | None = None) -> Path:
+             gsd_range: tuple[float, float] = (0.08, 0.3), minutes: float | None = None,
+             mix: str = "benchmark") -> Path:
     """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written images).
 
     The index is rewritten after every level so that a run cut short still leaves usable data."""
     from ..fsio import write_png
 
     def make_item(preset: str, seed: int, gsd: float, size: float, out: Path) -> tuple[dict, str]:
-        rgb, boxes = level_sample(preset, seed, gsd, size)
+        rgb, boxes = level_sample(preset, seed, gsd, size, mix=mix)
         name = f"{preset}_{seed}.png"
         write_png(out / name, rgb)
         return ({"image": name, "preset": preset, "seed": seed, "render_gsd_m": round(gsd, 4),
                  "boxes": [[round(v, 3) for v in b] for b in boxes]}, f"boxes={len(boxes)}")
 
     # level sizes kept small (fast, many layouts)
-    head = {"work_gsd_m": WORK_GSD_M}
+    head = {"work_gsd_m": WORK_GSD_M, "mix": mix}
     return render_levels(out_dir, seeds, make_item, stage="detector_data", index_head=head, presets=presets,
                          gsd_range=gsd_range, size_range_m=(70.0, 150.0), minutes=minutes)
 
 
 def main(argv: list[str] | None = None) -> None:
-    data_main(argv, __doc__.splitlines()[0], "100:400", generate)
+    data_main(argv, __doc__.splitlines()[0], "100:400", generate, mix_option=True)
 
 
 if __name__ == "__main__":

@@ -198,6 +198,88 @@ def export_onnx(net, path: Path) -> Path:
     return path
 
 
+def init_from_onnx(torch, net, onnx_path: Path, sampler: "Sampler", batches: int = 24) -> float:
+    """Start ``net`` from an exported ``detector.onnx`` (e.g. the shipped model, whose torch checkpoint is
+    not kept). The export folded each BatchNorm into its convolution; the folded weights are loaded and
+    each BatchNorm is set to the statistics of its convolution's output on training crops, with scale and
+    shift chosen so that the network computes exactly what the ONNX model does (checked: the largest
+    output difference on a crop is returned). Training then goes on from the same function."""
+    import onnx
+    from onnx import numpy_helper
+    from torch import nn
+
+    model = onnx.load(str(onnx_path))
+    inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
+    onnx_convs = [n for n in model.graph.node if n.op_type == "Conv"]
+    order: list[nn.Conv2d] = []
+    hooks = [m.register_forward_hook(lambda m, _i, _o: order.append(m))
+             for m in net.modules() if isinstance(m, nn.Conv2d)]
+    net.eval()
+    with torch.no_grad():
+        net(torch.zeros(1, 3, 64, 64))
+    for h in hooks:
+        h.remove()
+    if len(order) != len(onnx_convs):
+        raise InputError(f"{onnx_path} has {len(onnx_convs)} convolutions, this network {len(order)}: "
+                         "not a detector of this architecture")
+    bn_after: dict[nn.Conv2d, nn.BatchNorm2d] = {}
+    for seq in net.modules():
+        if isinstance(seq, nn.Sequential):
+            mods = list(seq)
+            for a, b in zip(mods, mods[1:]):
+                if isinstance(a, nn.Conv2d) and isinstance(b, nn.BatchNorm2d):
+                    bn_after[a] = b
+    folded_bias: dict[nn.Conv2d, torch.Tensor] = {}
+    with torch.no_grad():
+        for conv, node in zip(order, onnx_convs):
+            w = torch.from_numpy(inits[node.input[1]].copy())
+            b = (torch.from_numpy(inits[node.input[2]].copy()) if len(node.input) > 2
+                 else torch.zeros(w.shape[0]))
+            if tuple(w.shape) != tuple(conv.weight.shape):
+                raise InputError(f"{onnx_path}: convolution {node.name} has weights {tuple(w.shape)}, "
+                                 f"expected {tuple(conv.weight.shape)}")
+            conv.weight.copy_(w)
+            if conv in bn_after:  # identity BatchNorm that adds the folded bias: exact in eval mode
+                bn = bn_after[conv]
+                bn.weight.fill_(1.0)
+                bn.bias.copy_(b)
+                bn.running_mean.zero_()
+                bn.running_var.fill_(1.0 - bn.eps)
+                folded_bias[conv] = b
+            else:
+                conv.bias.copy_(b)
+    # the statistics each BatchNorm will see in training: per-channel mean and variance of its input
+    sums: dict[nn.Conv2d, list] = {c: [0.0, 0.0, 0] for c in bn_after}
+
+    def record(m, _i, o):
+        s = sums[m]
+        s[0] = s[0] + o.sum((0, 2, 3))
+        s[1] = s[1] + (o * o).sum((0, 2, 3))
+        s[2] += o.numel() // o.shape[1]
+
+    hooks = [c.register_forward_hook(record) for c in bn_after]
+    with torch.no_grad():
+        for _ in range(batches):
+            x = torch.from_numpy(np.stack([sampler.sample()[0] for _ in range(16)])).permute(0, 3, 1, 2)
+            net(x.float() / 255.0)
+    for h in hooks:
+        h.remove()
+    with torch.no_grad():
+        x = torch.from_numpy(sampler.sample()[0][None]).permute(0, 3, 1, 2).float()
+        before = net(x / 255.0)
+        for conv, bn in bn_after.items():
+            s0, s1, n = sums[conv]
+            mu = s0 / n
+            var = (s1 / n - mu * mu).clamp(min=1e-8)
+            bn.running_mean.copy_(mu)
+            bn.running_var.copy_(var)
+            bn.weight.copy_(torch.sqrt(var + bn.eps))
+            bn.bias.copy_(mu + folded_bias[conv])
+        after = net(x / 255.0)
+    net.train()
+    return float((after - before).abs().max())
+
+
 def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path | None = None,
           steps: int | None = None, batch: int = 16, crop: int = 160, lr: float = 2e-3, width: int = 16,
           threads: int = 1, data_minutes: float = 10.0, init: str | Path | None = None) -> dict:
@@ -219,8 +301,13 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
     if init is not None:  # continue an earlier run (its settings are kept in the record)
         init = Path(init)
         if not init.is_file():
-            raise InputError(f"--init {init} does not exist; give a detector.pt written by this command")
-        net.load_state_dict(torch.load(init, map_location="cpu"))
+            raise InputError(f"--init {init} does not exist; give a detector.pt or detector.onnx written "
+                             "by this command")
+        if init.suffix.lower() == ".onnx":
+            diff = init_from_onnx(torch, net, init, sampler)
+            print(f"started from {init} (largest output difference to the ONNX model {diff:.2e})", flush=True)
+        else:
+            net.load_state_dict(torch.load(init, map_location="cpu"))
         side = init.with_suffix(".json")
         previous = json.loads(side.read_text()).get("training") if side.is_file() else None
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
@@ -294,7 +381,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--crop", type=int, default=160)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--lr", type=float, default=2e-3)
-    ap.add_argument("--init", default=None, help="start from this detector.pt (continue a run)")
+    ap.add_argument("--init", default=None,
+                    help="start from this detector.pt or exported detector.onnx (continue a run)")
     a = ap.parse_args(argv)
     train(a.out, a.seed, a.minutes, a.data, a.steps, a.batch, a.crop, lr=a.lr, threads=a.threads, init=a.init)
 
