@@ -288,6 +288,43 @@ def test_clean_removes_boat_with_texture_fill():
     assert np.array_equal(out2[50:70, 195:205], img2[50:70, 195:205])
 
 
+def test_clean_rafted_boats_take_open_water_not_their_shadows_and_piers_stay():
+    """Boats moored side by side along a walkway: the ring right around them is shadow (dark) and deck
+    (brown); the fill must look like the open water further out, and the walkway must stay."""
+    from coastforge.segmentation.clean import clean_image
+    from coastforge.types import ClassMap
+
+    rng = np.random.default_rng(3)
+    H = W = 240
+    gsd = 0.2
+    water_rgb = np.array([38.0, 62.0, 50.0])
+    img = np.clip(water_rgb + rng.normal(0, 2.0, (H, W, 3)), 0, 255)
+    ids = np.full((H, W), WATER, np.uint8)
+    img[:, 114:126] = (120, 96, 70)  # the walkway deck (3.4 m), water in the class map (as after the fill)
+    boats = []
+    for k in range(8):  # two rows of boats, 3.6 m apart, each with a dark shadow band below it
+        cy = 40.0 + 22.0 * k
+        for cx in (80.0, 160.0):
+            boats.append(Detection("boat", 0.9, cx, cy, 60.0, 14.0, 0.0))
+            # the hull reaches past the box (boxes are never exact): its tips stay in the image
+            img[int(cy) - 7:int(cy) + 7, int(cx) - 36:int(cx) + 36] = 235
+            img[int(cy) + 7:int(cy) + 15, int(cx) - 30:int(cx) + 30] = (12, 18, 16)
+    img = img.astype(np.uint8)
+    walkway = Detection("pier_walkway", 0.9, 120.0, 120.0, 240.0, 12.0, 90.0)
+    image = GeoImage(rgb=img, grid=Grid(W, H, gsd))
+    out = clean_image(image, boats, ClassMap(ids=ids, grid=image.grid), seed=0, keep=[walkway])
+    under = np.zeros((H, W), bool)
+    for b in boats:
+        under[int(b.cy_px) - 5:int(b.cy_px) + 5, int(b.cx_px) - 28:int(b.cx_px) + 28] = True
+    under[:, 108:132] = False
+    filled = out[under].reshape(-1, 3).astype(float)
+    assert np.abs(filled.mean(0) - water_rgb).max() < 6
+    # ripples like the open water's, not specks copied from beside the hulls and shadows
+    assert filled.std(0).max() < 3 * 2.0
+    assert (np.abs(filled - water_rgb) > 25).any(axis=1).mean() < 0.005
+    assert np.array_equal(out[:, 115:125], img[:, 115:125])  # the walkway stays
+
+
 def test_load_detections(tmp_path):
     from coastforge.segmentation.clean import load_detections
 

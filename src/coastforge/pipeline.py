@@ -420,7 +420,8 @@ def _clean(image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: in
     from .segmentation.clean import clean_image
 
     transient = [d for d in dets if d.category in ("boat", "vehicle", "buoy")]
-    return clean_image(image, transient, class_map, seed)
+    piers = [d for d in dets if d.category in ("pier_walkway", "pier_finger")]
+    return clean_image(image, transient, class_map, seed, keep=piers)
 
 
 class _Background:

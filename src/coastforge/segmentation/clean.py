@@ -4,7 +4,9 @@ Small holes (a car, a dinghy) are inpainted with OpenCV (Telea). Large ones (a y
 would come out as smears, so they are filled from their surroundings' statistics instead: a smooth
 colour field interpolated from the ring of pixels around the hole (of the hole's surrounding class when
 a class map is given: water under boats), plus texture — residual detail (pixel minus local mean)
-copied from random places in that ring, so water keeps its ripples and asphalt its grain.
+copied from random places in that ring, so water keeps its ripples and asphalt its grain. In water the
+colour and ripples come from open water nearby rather than the ring: between boats rafted along a pier
+the ring is shadows, decks and slivers of hull. Piers stay (``keep``).
 
 Detections come from ``coastforge detect`` or a JSON file in its format::
 
@@ -24,9 +26,16 @@ import numpy as np
 from .. import frames
 from ..errors import InputError
 from ..rng import stage_rng
+from ..classes import WATER
 from ..types import ClassMap, Detection, GeoImage
 
 TRANSIENT = ("boat", "vehicle", "buoy")  # objects that move or are placed as assets; piers stay
+# A hole in water is filled from "open water": water pixels at least OPEN_WATER_CLEAR_M from any removed
+# object, pier or land (past the shadows a boat casts and the glare at a quay), within OPEN_WATER_REACH_M
+# of the hole; with fewer than OPEN_WATER_MIN_PX such pixels the ring right around the hole is used
+OPEN_WATER_CLEAR_M = 2.0
+OPEN_WATER_REACH_M = 15.0
+OPEN_WATER_MIN_PX = 50
 
 
 def detection_from_corners(category: str, corners, score: float = 1.0) -> Detection:
@@ -135,49 +144,129 @@ def _texture_fill(img: np.ndarray, hole: np.ndarray, ring: np.ndarray, rng: np.r
         base[ok] = num[ok] / den[ok][:, None]
         done |= ok
         k = k * 2 + 1
-    # texture: residuals of the ring (pixel - local mean), copied from random ring pixels in small
-    # blocks so the grain keeps its spatial correlation
-    local = cv2.blur(f, (5, 5))
-    resid = f - local
+    # texture: residuals of the ring (pixel - local mean), copied from random ring pixels
+    resid = f - cv2.blur(f, (5, 5))
     ry, rx = np.nonzero(ring)
     hy, hx = np.nonzero(hole)
-    if ry.size:
-        b = 4  # block size in pixels
-        by, bx = hy // b, hx // b
-        keys = by.astype(np.int64) * 100_003 + bx
-        uk, inv = np.unique(keys, return_inverse=True)
-        pick = rng.integers(0, ry.size, uk.size)
-        oy = ry[pick][inv] + (hy % b) - b // 2
-        ox = rx[pick][inv] + (hx % b) - b // 2
-        oy = np.clip(oy, 0, f.shape[0] - 1)
-        ox = np.clip(ox, 0, f.shape[1] - 1)
-        tex = resid[oy, ox]
-    else:
-        tex = 0.0
+    tex = _copy_texture(resid, ry, rx, hy, hx, rng)
     img[hy, hx] = np.clip(base[hy, hx] + tex + 0.5, 0, 255).astype(np.uint8)
+
+
+def _copy_texture(resid: np.ndarray, ry: np.ndarray, rx: np.ndarray, hy: np.ndarray, hx: np.ndarray,
+                  rng: np.random.Generator, b: int = 4):
+    """Residual detail for the hole pixels (hy, hx), copied from random source pixels (ry, rx) in b x b
+    blocks so that the grain keeps its spatial correlation (0 without sources)."""
+    if not ry.size:
+        return 0.0
+    by, bx = hy // b, hx // b
+    keys = by.astype(np.int64) * 100_003 + bx
+    uk, inv = np.unique(keys, return_inverse=True)
+    pick = rng.integers(0, ry.size, uk.size)
+    oy = np.clip(ry[pick][inv] + (hy % b) - b // 2, 0, resid.shape[0] - 1)
+    ox = np.clip(rx[pick][inv] + (hx % b) - b // 2, 0, resid.shape[1] - 1)
+    return resid[oy, ox]
+
+
+class _OpenWater:
+    """Water pixels well clear of removed objects, piers and land, with the smooth colour field they
+    give (normalised box filters at two scales, over the whole image at once) and their ripples."""
+
+    def __init__(self, rgb: np.ndarray, ids: np.ndarray, blocked: np.ndarray, gsd: float):
+        r = max(1, int(round(OPEN_WATER_CLEAR_M / gsd)))
+        near = cv2.dilate((blocked | (ids != WATER)).astype(np.uint8),
+                          cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+        self.mask = ~near.astype(bool)
+        self.reach_px = max(3, int(round(OPEN_WATER_REACH_M / gsd)))
+        self._rgb = rgb
+        self._base: np.ndarray | None = None
+        self._resid: np.ndarray | None = None
+
+    def fields(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._base is None:
+            f = self._rgb.astype(np.float32)
+            base = self._smooth(f, self.mask)
+            # "water" the detector missed (a boat, a buoy, a floating deck) or glare is far from the local
+            # water colour: drop such pixels (robust z-score over the image) and smooth again
+            dev = np.abs(f - np.nan_to_num(base))
+            d = dev[self.mask]
+            if d.shape[0] >= OPEN_WATER_MIN_PX:
+                mad = np.median(d[:: max(1, d.shape[0] // 200_000)], axis=0) * 1.4826 + 2.0
+                self.mask &= ~(dev > 3.0 * mad).any(axis=2)
+                base = self._smooth(f, self.mask)
+            self._base, self._resid = base, f - cv2.blur(f, (5, 5))
+        return self._base, self._resid
+
+    def _smooth(self, f: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Mean colour of ``mask`` pixels over about the reach (NaN where there are none), computed on a
+        grid 16 times coarser than the reach: the field is smooth, and this keeps it cheap."""
+        h, w = mask.shape
+        s = max(1, self.reach_px // 16)
+        size = (max(1, w // s), max(1, h // s))
+        ow = cv2.resize(mask.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        fw = cv2.resize(f * mask[..., None], size, interpolation=cv2.INTER_AREA)
+        r = max(1, self.reach_px // s)
+        base = np.full(fw.shape, np.nan, np.float32)
+        for k in (r | 1, (3 * r) | 1):  # the wider scale where the first has none
+            den = cv2.blur(ow, (k, k))
+            num = cv2.blur(fw, (k, k))
+            ok = (den > 0.01) & np.isnan(base[..., 0])
+            base = np.where(ok[..., None], num / np.maximum(den, 1e-6)[..., None], base)
+        return cv2.resize(base, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _fill_from_open_water(out: np.ndarray, lab: np.ndarray, i: int, box: tuple[int, int, int, int],
+                          water: _OpenWater, rng: np.random.Generator) -> bool:
+    """Fill hole ``i`` in water from open water within reach (False when there is too little of it).
+
+    Right around boats in water are their shadows, pier decks and slivers of hull (boxes are never exact),
+    and copying their colour and grain leaves dark, speckled patches where boats were rafted together."""
+    x, y, w, h = box
+    R = water.reach_px
+    H, W = lab.shape
+    X0, Y0, X1, Y1 = max(0, x - R), max(0, y - R), min(W, x + w + R), min(H, y + h + R)
+    ry, rx = np.nonzero(water.mask[Y0:Y1, X0:X1])
+    if ry.size < OPEN_WATER_MIN_PX:
+        return False
+    base, resid = water.fields()
+    hy, hx = np.nonzero(lab[y:y + h, x:x + w] == i)
+    hy, hx = hy + y, hx + x
+    b = base[hy, hx]
+    if np.isnan(b).any():
+        return False
+    tex = _copy_texture(resid, ry + Y0, rx + X0, hy, hx, rng)
+    out[hy, hx] = np.clip(b + tex + 0.5, 0, 255).astype(np.uint8)
+    return True
 
 
 def clean_image(image: GeoImage, detections: Sequence[Detection], class_map: ClassMap | None = None,
                 seed: int = 0, categories: Sequence[str] = TRANSIENT, margin_m: float = 0.6,
-                small_m2: float = 12.0) -> np.ndarray:
+                small_m2: float = 12.0, keep: Sequence[Detection] = ()) -> np.ndarray:
     """The image with transient objects removed (uint8 RGB, same size).
 
     Holes up to ``small_m2`` use OpenCV Telea inpainting; larger ones a texture-aware fill from the
-    surrounding pixels of the hole's surrounding class (``class_map``) or of all surroundings."""
+    surrounding pixels of the hole's surrounding class (``class_map``) or of all surroundings. A hole in
+    water takes its colour and ripples from open water nearby (see ``OPEN_WATER_CLEAR_M``). ``keep``:
+    boxes that stay as they are (pier walkways and fingers: a moored boat's margin must not erase them)."""
     rgb = image.rgb
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise InputError(f"cleaning needs an RGB image, got shape {rgb.shape}")
     H, W = rgb.shape[:2]
     gsd = image.grid.gsd_m
     mask = transient_mask((H, W), detections, tuple(categories), margin_m / gsd)
+    # piers stay: they are structure (the moored boats' boxes and margins often reach over the fingers)
+    kept = (transient_mask((H, W), keep, tuple({d.category for d in keep})) if keep
+            else np.zeros((H, W), bool))
+    mask &= ~kept
     out = rgb.copy()
     if not mask.any():
         return out
     ids = None
+    water: _OpenWater | None = None
     if class_map is not None:
         ids = class_map.ids
         if ids.shape != (H, W):
             ids = cv2.resize(ids, (W, H), interpolation=cv2.INTER_NEAREST)
+        water = _OpenWater(rgb, ids, mask | kept, gsd)
     rng = stage_rng(seed, "clean")
     n, lab, stats, _c = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     ring_px = max(3, int(round(3.0 / gsd)))
@@ -197,6 +286,9 @@ def clean_image(image: GeoImage, detections: Sequence[Detection], class_map: Cla
             same = ring & (ids[y0:y1, x0:x1] == cls)
             if same.sum() >= 0.2 * ring.sum():
                 ring = same
+            if cls == WATER and water is not None and _fill_from_open_water(out, lab, i, (x, y, w, h), water,
+                                                                             rng):
+                continue
         if not ring.any():
             ring = ~mask[y0:y1, x0:x1]
         if not ring.any():
