@@ -183,17 +183,18 @@ class _OpenWater:
 
     def fields(self) -> tuple[np.ndarray, np.ndarray]:
         if self._base is None:
-            f = self._rgb.astype(np.float32)
-            base = self._smooth(f, self.mask)
+            rgb = self._rgb
+            base = self._smooth(rgb, self.mask)
             # "water" the detector missed (a boat, a buoy, a floating deck) or glare is far from the local
             # water colour: drop such pixels (robust z-score over the image) and smooth again
-            dev = np.abs(f - np.nan_to_num(base))
+            dev = cv2.absdiff(rgb, np.clip(np.nan_to_num(base) + 0.5, 0, 255).astype(np.uint8))
             d = dev[self.mask]
             if d.shape[0] >= OPEN_WATER_MIN_PX:
                 mad = np.median(d[:: max(1, d.shape[0] // 200_000)], axis=0) * 1.4826 + 2.0
                 self.mask &= ~(dev > 3.0 * mad).any(axis=2)
-                base = self._smooth(f, self.mask)
-            self._base, self._resid = base, f - cv2.blur(f, (5, 5))
+                base = self._smooth(rgb, self.mask)
+            # texture: pixel minus its 5 x 5 mean (in whole levels: the grain is a few levels deep anyway)
+            self._base, self._resid = base, rgb.astype(np.int16) - cv2.blur(rgb, (5, 5))
         return self._base, self._resid
 
     def _smooth(self, f: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -203,7 +204,7 @@ class _OpenWater:
         s = max(1, self.reach_px // 16)
         size = (max(1, w // s), max(1, h // s))
         ow = cv2.resize(mask.astype(np.float32), size, interpolation=cv2.INTER_AREA)
-        fw = cv2.resize(f * mask[..., None], size, interpolation=cv2.INTER_AREA)
+        fw = cv2.resize(np.where(mask[..., None], f, 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
         r = max(1, self.reach_px // s)
         base = np.full(fw.shape, np.nan, np.float32)
         for k in (r | 1, (3 * r) | 1):  # the wider scale where the first has none
