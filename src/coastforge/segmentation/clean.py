@@ -148,28 +148,30 @@ def _texture_fill(img: np.ndarray, hole: np.ndarray, ring: np.ndarray, rng: np.r
     resid = f - cv2.blur(f, (5, 5))
     ry, rx = np.nonzero(ring)
     hy, hx = np.nonzero(hole)
-    tex = _copy_texture(resid, ry, rx, hy, hx, rng)
+    tex = _copy_texture(lambda oy, ox: resid[oy, ox], ry, rx, hy, hx, rng, resid.shape[:2])
     img[hy, hx] = np.clip(base[hy, hx] + tex + 0.5, 0, 255).astype(np.uint8)
 
 
-def _copy_texture(resid: np.ndarray, ry: np.ndarray, rx: np.ndarray, hy: np.ndarray, hx: np.ndarray,
-                  rng: np.random.Generator, b: int = 4):
+def _copy_texture(resid_at, ry: np.ndarray, rx: np.ndarray, hy: np.ndarray, hx: np.ndarray,
+                  rng: np.random.Generator, shape: tuple[int, int], b: int = 4):
     """Residual detail for the hole pixels (hy, hx), copied from random source pixels (ry, rx) in b x b
-    blocks so that the grain keeps its spatial correlation (0 without sources)."""
+    blocks so that the grain keeps its spatial correlation (0 without sources). ``resid_at(oy, ox)``
+    gives the residuals; ``shape`` (H, W) bounds the source coordinates."""
     if not ry.size:
         return 0.0
     by, bx = hy // b, hx // b
     keys = by.astype(np.int64) * 100_003 + bx
     uk, inv = np.unique(keys, return_inverse=True)
     pick = rng.integers(0, ry.size, uk.size)
-    oy = np.clip(ry[pick][inv] + (hy % b) - b // 2, 0, resid.shape[0] - 1)
-    ox = np.clip(rx[pick][inv] + (hx % b) - b // 2, 0, resid.shape[1] - 1)
-    return resid[oy, ox]
+    oy = np.clip(ry[pick][inv] + (hy % b) - b // 2, 0, shape[0] - 1)
+    ox = np.clip(rx[pick][inv] + (hx % b) - b // 2, 0, shape[1] - 1)
+    return resid_at(oy, ox)
 
 
 class _OpenWater:
     """Water pixels well clear of removed objects, piers and land, with the smooth colour field they
-    give (normalised box filters at two scales, over the whole image at once) and their ripples."""
+    give (normalised box filters at two scales, on a grid 16 times coarser than the reach: the field is
+    smooth, and this keeps it cheap on large images) and their ripples."""
 
     def __init__(self, rgb: np.ndarray, ids: np.ndarray, blocked: np.ndarray, gsd: float):
         r = max(1, int(round(OPEN_WATER_CLEAR_M / gsd)))
@@ -177,42 +179,63 @@ class _OpenWater:
                           cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
         self.mask = ~near.astype(bool)
         self.reach_px = max(3, int(round(OPEN_WATER_REACH_M / gsd)))
+        self.step = max(1, self.reach_px // 16)
         self._rgb = rgb
-        self._base: np.ndarray | None = None
-        self._resid: np.ndarray | None = None
+        self._base: np.ndarray | None = None  # coarse grid, NaN where no open water is within reach
+        self._blur: np.ndarray | None = None
 
-    def fields(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._base is None:
-            rgb = self._rgb
-            base = self._smooth(rgb, self.mask)
-            # "water" the detector missed (a boat, a buoy, a floating deck) or glare is far from the local
-            # water colour: drop such pixels (robust z-score over the image) and smooth again
-            dev = cv2.absdiff(rgb, np.clip(np.nan_to_num(base) + 0.5, 0, 255).astype(np.uint8))
-            d = dev[self.mask]
-            if d.shape[0] >= OPEN_WATER_MIN_PX:
-                mad = np.median(d[:: max(1, d.shape[0] // 200_000)], axis=0) * 1.4826 + 2.0
-                self.mask &= ~(dev > 3.0 * mad).any(axis=2)
-                base = self._smooth(rgb, self.mask)
-            # texture: pixel minus its 5 x 5 mean (in whole levels: the grain is a few levels deep anyway)
-            self._base, self._resid = base, rgb.astype(np.int16) - cv2.blur(rgb, (5, 5))
-        return self._base, self._resid
+    def prepare(self) -> None:
+        if self._base is not None:
+            return
+        rgb = self._rgb
+        h, w = self.mask.shape
+        base = self._smooth(self.mask)
+        # "water" the detector missed (a boat, a buoy, a floating deck) or glare is far from the local
+        # water colour: drop such pixels (robust z-score over the image) and smooth again
+        full = cv2.resize(np.clip(np.nan_to_num(base) + 0.5, 0, 255).astype(np.uint8), (w, h),
+                          interpolation=cv2.INTER_LINEAR)
+        dev = cv2.absdiff(rgb, full)
+        d = dev[::4, ::4][self.mask[::4, ::4]]
+        if d.shape[0] >= OPEN_WATER_MIN_PX:
+            thr = np.minimum(255, np.ceil(3.0 * (np.median(d, axis=0) * 1.4826 + 2.0)))
+            over = cv2.subtract(dev, np.full(dev.shape, thr, np.uint8))
+            self.mask &= (over[..., 0] | over[..., 1] | over[..., 2]) == 0
+            base = self._smooth(self.mask)
+        self._base, self._blur = base, cv2.blur(rgb, (5, 5))
 
-    def _smooth(self, f: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        """Mean colour of ``mask`` pixels over about the reach (NaN where there are none), computed on a
-        grid 16 times coarser than the reach: the field is smooth, and this keeps it cheap."""
+    def _smooth(self, mask: np.ndarray) -> np.ndarray:
         h, w = mask.shape
-        s = max(1, self.reach_px // 16)
-        size = (max(1, w // s), max(1, h // s))
-        ow = cv2.resize(mask.astype(np.float32), size, interpolation=cv2.INTER_AREA)
-        fw = cv2.resize(np.where(mask[..., None], f, 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
-        r = max(1, self.reach_px // s)
+        size = (max(1, w // self.step), max(1, h // self.step))
+        m8 = mask.astype(np.uint8)
+        ow = cv2.resize(m8.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        fw = cv2.resize(cv2.bitwise_and(self._rgb, self._rgb, mask=m8).astype(np.float32), size,
+                        interpolation=cv2.INTER_AREA)
+        r = max(1, self.reach_px // self.step)
         base = np.full(fw.shape, np.nan, np.float32)
         for k in (r | 1, (3 * r) | 1):  # the wider scale where the first has none
             den = cv2.blur(ow, (k, k))
             num = cv2.blur(fw, (k, k))
             ok = (den > 0.01) & np.isnan(base[..., 0])
             base = np.where(ok[..., None], num / np.maximum(den, 1e-6)[..., None], base)
-        return cv2.resize(base, (w, h), interpolation=cv2.INTER_LINEAR)
+        return base
+
+    def colour_at(self, hy: np.ndarray, hx: np.ndarray) -> np.ndarray:
+        """The smooth open-water colour at pixels (hy, hx), bilinear from the coarse grid (NaN: none)."""
+        self.prepare()
+        b = self._base
+        gh, gw = b.shape[:2]
+        fy = np.clip((hy + 0.5) / self.step - 0.5, 0, gh - 1)
+        fx = np.clip((hx + 0.5) / self.step - 0.5, 0, gw - 1)
+        y0, x0 = np.floor(fy).astype(np.intp), np.floor(fx).astype(np.intp)
+        y1, x1 = np.minimum(y0 + 1, gh - 1), np.minimum(x0 + 1, gw - 1)
+        wy, wx = (fy - y0)[:, None], (fx - x0)[:, None]
+        return ((b[y0, x0] * (1 - wx) + b[y0, x1] * wx) * (1 - wy)
+                + (b[y1, x0] * (1 - wx) + b[y1, x1] * wx) * wy)
+
+    def ripples_at(self, oy: np.ndarray, ox: np.ndarray) -> np.ndarray:
+        """Pixel minus its 5 x 5 mean at (oy, ox)."""
+        self.prepare()
+        return self._rgb[oy, ox].astype(np.int16) - self._blur[oy, ox]
 
 
 def _fill_from_open_water(out: np.ndarray, lab: np.ndarray, i: int, box: tuple[int, int, int, int],
@@ -228,13 +251,15 @@ def _fill_from_open_water(out: np.ndarray, lab: np.ndarray, i: int, box: tuple[i
     ry, rx = np.nonzero(water.mask[Y0:Y1, X0:X1])
     if ry.size < OPEN_WATER_MIN_PX:
         return False
-    base, resid = water.fields()
     hy, hx = np.nonzero(lab[y:y + h, x:x + w] == i)
     hy, hx = hy + y, hx + x
-    b = base[hy, hx]
+    b = water.colour_at(hy, hx)
     if np.isnan(b).any():
         return False
-    tex = _copy_texture(resid, ry + Y0, rx + X0, hy, hx, rng)
+    # the outlier test of ``prepare`` may have taken some of the sources away
+    keep = water.mask[ry + Y0, rx + X0]
+    ry, rx = ry[keep], rx[keep]
+    tex = _copy_texture(water.ripples_at, ry + Y0, rx + X0, hy, hx, rng, (H, W))
     out[hy, hx] = np.clip(b + tex + 0.5, 0, 255).astype(np.uint8)
     return True
 
