@@ -5,7 +5,9 @@ the detector's working GSD, with their oriented boxes.
 ``index.json`` listing, per image, the boxes ``[class_id, cx_px, cy_px, length_px, width_px, yaw_deg]``
 (yaw = direction of the front, scene convention). Rendering goes through ``coastforge.synth_render``
 (lighting, tints, clutter, blur, noise, JPEG), so the training images look like the benchmark's; the
-benchmark's own seed (0) is refused so that validation never leaks into training.
+benchmark's own seed (0) is refused so that validation never leaks into training. ``--mix training``
+draws the rare asset types more often (``synth_layout.TRAINING_MIX``: buses and box trucks, hatchbacks,
+dinghies, kayaks, rowboats, centre consoles); the default draws them as the benchmark's levels do.
 """
 
 from __future__ import annotations

@@ -6,7 +6,9 @@ Without ``--data`` the training levels are rendered first (``detector_data.gener
 seeds below 100 are validation). Writes ``DIR/detector.onnx`` (refreshed at checkpoints, so a run cut
 short still leaves a model) and ``DIR/detector.json`` (settings, parameter count, loss curve). The
 learning rate follows a cosine over the time budget, so ``--steps`` fixes the step count for an exact
-re-run. torch is a training-time extra (``pip install coastforge[train]``).
+re-run. ``--init`` continues from a ``detector.pt`` or from an exported ``detector.onnx`` (such as the
+shipped model, whose checkpoint is not kept: ``init_from_onnx`` rebuilds the BatchNorms the export folded).
+torch is a training-time extra (``pip install coastforge[train]``).
 """
 
 from __future__ import annotations
