@@ -312,7 +312,7 @@ def test_clean_rafted_boats_take_open_water_not_their_shadows_and_piers_stay():
     img = img.astype(np.uint8)
     walkway = Detection("pier_walkway", 0.9, 120.0, 120.0, 240.0, 12.0, 90.0)
     image = GeoImage(rgb=img, grid=Grid(W, H, gsd))
-    out = clean_image(image, boats, ClassMap(ids=ids, grid=image.grid), seed=0, keep=[walkway])
+    out = clean_image(image, boats + [walkway], ClassMap(ids=ids, grid=image.grid), seed=0)
     under = np.zeros((H, W), bool)
     for b in boats:
         under[int(b.cy_px) - 5:int(b.cy_px) + 5, int(b.cx_px) - 28:int(b.cx_px) + 28] = True

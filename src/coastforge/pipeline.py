@@ -416,14 +416,6 @@ def object_counts(objects, n_vegetation: int) -> dict[str, int]:
     return counts
 
 
-def _clean(image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
-    from .segmentation.clean import clean_image
-
-    transient = [d for d in dets if d.category in ("boat", "vehicle", "buoy")]
-    piers = [d for d in dets if d.category in ("pier_walkway", "pier_finger")]
-    return clean_image(image, transient, class_map, seed, keep=piers)
-
-
 class _Background:
     """A small thread pool for work beside the main chain. NumPy, OpenCV and zlib release the GIL, so on
     two cores the side rasters are encoded while the next stage computes. ``result``/``wait`` re-raise a
@@ -524,11 +516,12 @@ def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection],
 
 
 def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
-    """The inpainted image (``_clean``), written as a PNG and returned (the report shows it); a module-level
-    function so a side process can run it."""
+    """The inpainted image (boats, vehicles and buoys removed; piers stay), written as a PNG and returned (the
+    report shows it); a module-level function so a side process can run it."""
     from .fsio import write_png
+    from .segmentation.clean import clean_image
 
-    rgb = _clean(image, dets, class_map, seed)
+    rgb = clean_image(image, dets, class_map, seed)
     write_png(path, rgb)
     return rgb
 

@@ -718,10 +718,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
             s_dets = [scale_detection(d, fx) for d in dets]
         atomic_write_text(out / "detections.json",
                           detections_to_json(dets, grid.gsd_m, (W, H), {"tiled": True, "tile_px": tile_px}))
-        transient = [d for d in s_dets if d.category in ("boat", "vehicle", "buoy")]
-        piers = [d for d in s_dets if d.category in ("pier_walkway", "pier_finger")]
-        bg.submit("cleaned", lambda: write_png(out / "cleaned.png",
-                                               clean_image(overview, transient, class_map, seed, keep=piers)))
+        bg.submit("cleaned", lambda: write_png(out / "cleaned.png", clean_image(overview, s_dets, class_map, seed)))
         bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, overview, config.segment)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=overview, dems=req.dems, seed=seed)

@@ -23,29 +23,15 @@ from dataclasses import replace
 
 import numpy as np
 
-TRANSIENT = ("boat", "vehicle", "buoy")
+from ..segmentation.clean import TRANSIENT
+
 LEFT_DIFF = 40.0  # a pixel this far from the truth (max over R, G, B) is "left over"
 GROW_M = 1.0  # footprints grown by this much: the shadows go with the objects
 
 
-def _footprints(scene, n: int, gsd: float) -> np.ndarray:
-    import cv2
-
-    from ..types import Detection, Grid
-
-    grid = Grid(n, n, gsd)
-    mask = np.zeros((n, n), np.uint8)
-    for o in scene.objects:
-        if o.category not in TRANSIENT:
-            continue
-        col, row = grid.to_pixel(o.x_m, o.y_m)
-        d = Detection(o.category, 1.0, col, row, (o.length_m + 2 * GROW_M) / gsd,
-                      (o.width_m + 2 * GROW_M) / gsd, o.yaw_deg)
-        cv2.fillPoly(mask, [np.round(d.corners_px()).astype(np.int32)], 1)
-    return mask.astype(bool)
-
-
-def _truth_boxes(scene, n: int, gsd: float) -> list:
+def _truth_boxes(scene, n: int, gsd: float, grow_m: float = 0.0) -> list:
+    """The scene's boats, vehicles, buoys and piers as pixel boxes (piers as walkways), grown by
+    ``grow_m``."""
     from ..types import Detection, Grid
 
     grid = Grid(n, n, gsd)
@@ -54,8 +40,19 @@ def _truth_boxes(scene, n: int, gsd: float) -> list:
         if o.category in TRANSIENT or o.category == "pier":
             col, row = grid.to_pixel(o.x_m, o.y_m)
             cat = o.category if o.category != "pier" else "pier_walkway"
-            out.append(Detection(cat, 1.0, col, row, o.length_m / gsd, o.width_m / gsd, o.yaw_deg))
+            out.append(Detection(cat, 1.0, col, row, (o.length_m + 2 * grow_m) / gsd,
+                                 (o.width_m + 2 * grow_m) / gsd, o.yaw_deg))
     return out
+
+
+def _footprints(scene, n: int, gsd: float) -> np.ndarray:
+    import cv2
+
+    mask = np.zeros((n, n), np.uint8)
+    for d in _truth_boxes(scene, n, gsd, GROW_M):
+        if d.category in TRANSIENT:
+            cv2.fillPoly(mask, [np.round(d.corners_px()).astype(np.int32)], 1)
+    return mask.astype(bool)
 
 
 def _score(img: np.ndarray, truth: np.ndarray, where: np.ndarray) -> tuple[float, float]:
@@ -92,10 +89,8 @@ def clean_level(preset: str, seed: int, gsd: float, boxes: str = "detected",
     else:
         dets = detect(image, cfg.detect, class_map=class_map, seed=seed)
     class_map = fill_under_objects(class_map, dets)
-    transient = [d for d in dets if d.category in TRANSIENT]
-    piers = [d for d in dets if d.category in ("pier_walkway", "pier_finger")]
     t1 = time.perf_counter()
-    cleaned = clean_image(image, transient, class_map, seed, keep=piers)
+    cleaned = clean_image(image, dets, class_map, seed)
     dt = time.perf_counter() - t1
     where = _footprints(level.scene, n, g)
     mae0, left0 = _score(rgb, truth, where)

@@ -6,7 +6,7 @@ colour field interpolated from the ring of pixels around the hole (of the hole's
 a class map is given: water under boats), plus texture — residual detail (pixel minus local mean)
 copied from random places in that ring, so water keeps its ripples and asphalt its grain. In water the
 colour and ripples come from open water nearby rather than the ring: between boats rafted along a pier
-the ring is shadows, decks and slivers of hull. Piers stay (``keep``).
+the ring is shadows, decks and slivers of hull. Pier walkways and fingers stay.
 
 Detections come from ``coastforge detect`` or a JSON file in its format::
 
@@ -30,6 +30,7 @@ from ..classes import WATER
 from ..types import ClassMap, Detection, GeoImage
 
 TRANSIENT = ("boat", "vehicle", "buoy")  # objects that move or are placed as assets; piers stay
+PIERS = ("pier_walkway", "pier_finger")  # structure: kept even where a removed box's margin reaches over it
 # A hole in water is filled from "open water": water pixels at least OPEN_WATER_CLEAR_M from any removed
 # object, pier or land (past the shadows a boat casts and the glare at a quay), within OPEN_WATER_REACH_M
 # of the hole; with fewer than OPEN_WATER_MIN_PX such pixels the ring right around the hole is used
@@ -174,13 +175,10 @@ class _OpenWater:
     smooth, and this keeps it cheap on large images) and their ripples."""
 
     def __init__(self, rgb: np.ndarray, ids: np.ndarray, blocked: np.ndarray, gsd: float):
-        r = max(1, int(round(OPEN_WATER_CLEAR_M / gsd)))
-        near = cv2.dilate((blocked | (ids != WATER)).astype(np.uint8),
-                          cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
-        self.mask = ~near.astype(bool)
         self.reach_px = max(3, int(round(OPEN_WATER_REACH_M / gsd)))
         self.step = max(1, self.reach_px // 16)
-        self._rgb = rgb
+        self._rgb, self._ids, self._blocked, self._gsd = rgb, ids, blocked, gsd
+        self.mask: np.ndarray | None = None  # computed by ``prepare``, on the first hole in water
         self._base: np.ndarray | None = None  # coarse grid, NaN where no open water is within reach
         self._blur: np.ndarray | None = None
 
@@ -188,6 +186,10 @@ class _OpenWater:
         if self._base is not None:
             return
         rgb = self._rgb
+        r = max(1, int(round(OPEN_WATER_CLEAR_M / self._gsd)))
+        near = cv2.dilate((self._blocked | (self._ids != WATER)).astype(np.uint8),
+                          cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+        self.mask = ~near.astype(bool)
         h, w = self.mask.shape
         base = self._smooth(self.mask)
         # "water" the detector missed (a boat, a buoy, a floating deck) or glare is far from the local
@@ -221,7 +223,6 @@ class _OpenWater:
 
     def colour_at(self, hy: np.ndarray, hx: np.ndarray) -> np.ndarray:
         """The smooth open-water colour at pixels (hy, hx), bilinear from the coarse grid (NaN: none)."""
-        self.prepare()
         b = self._base
         gh, gw = b.shape[:2]
         fy = np.clip((hy + 0.5) / self.step - 0.5, 0, gh - 1)
@@ -234,7 +235,6 @@ class _OpenWater:
 
     def ripples_at(self, oy: np.ndarray, ox: np.ndarray) -> np.ndarray:
         """Pixel minus its 5 x 5 mean at (oy, ox)."""
-        self.prepare()
         return self._rgb[oy, ox].astype(np.int16) - self._blur[oy, ox]
 
 
@@ -244,6 +244,7 @@ def _fill_from_open_water(out: np.ndarray, lab: np.ndarray, i: int, box: tuple[i
 
     Right around boats in water are their shadows, pier decks and slivers of hull (boxes are never exact),
     and copying their colour and grain leaves dark, speckled patches where boats were rafted together."""
+    water.prepare()
     x, y, w, h = box
     R = water.reach_px
     H, W = lab.shape
@@ -256,9 +257,6 @@ def _fill_from_open_water(out: np.ndarray, lab: np.ndarray, i: int, box: tuple[i
     b = water.colour_at(hy, hx)
     if np.isnan(b).any():
         return False
-    # the outlier test of ``prepare`` may have taken some of the sources away
-    keep = water.mask[ry + Y0, rx + X0]
-    ry, rx = ry[keep], rx[keep]
     tex = _copy_texture(water.ripples_at, ry + Y0, rx + X0, hy, hx, rng, (H, W))
     out[hy, hx] = np.clip(b + tex + 0.5, 0, 255).astype(np.uint8)
     return True
@@ -266,13 +264,14 @@ def _fill_from_open_water(out: np.ndarray, lab: np.ndarray, i: int, box: tuple[i
 
 def clean_image(image: GeoImage, detections: Sequence[Detection], class_map: ClassMap | None = None,
                 seed: int = 0, categories: Sequence[str] = TRANSIENT, margin_m: float = 0.6,
-                small_m2: float = 12.0, keep: Sequence[Detection] = ()) -> np.ndarray:
+                small_m2: float = 12.0, keep_categories: Sequence[str] = PIERS) -> np.ndarray:
     """The image with transient objects removed (uint8 RGB, same size).
 
     Holes up to ``small_m2`` use OpenCV Telea inpainting; larger ones a texture-aware fill from the
     surrounding pixels of the hole's surrounding class (``class_map``) or of all surroundings. A hole in
-    water takes its colour and ripples from open water nearby (see ``OPEN_WATER_CLEAR_M``). ``keep``:
-    boxes that stay as they are (pier walkways and fingers: a moored boat's margin must not erase them)."""
+    water takes its colour and ripples from open water nearby (see ``OPEN_WATER_CLEAR_M``). Boxes of
+    ``keep_categories`` stay as they are (pier walkways and fingers: a moored boat's margin must not erase
+    them); other categories are ignored."""
     rgb = image.rgb
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise InputError(f"cleaning needs an RGB image, got shape {rgb.shape}")
@@ -280,8 +279,7 @@ def clean_image(image: GeoImage, detections: Sequence[Detection], class_map: Cla
     gsd = image.grid.gsd_m
     mask = transient_mask((H, W), detections, tuple(categories), margin_m / gsd)
     # piers stay: they are structure (the moored boats' boxes and margins often reach over the fingers)
-    kept = (transient_mask((H, W), keep, tuple({d.category for d in keep})) if keep
-            else np.zeros((H, W), bool))
+    kept = transient_mask((H, W), detections, tuple(keep_categories))
     mask &= ~kept
     out = rgb.copy()
     if not mask.any():
