@@ -203,3 +203,28 @@ def test_training_starts_exactly_from_an_exported_onnx(tmp_path):
     np.testing.assert_allclose(y[:, 3:], reg, atol=1e-3)
     with pytest.raises(InputError, match="expected"):
         init_from_onnx(torch, build_model(16), path, Crops(), batches=1)
+
+
+def test_training_samples_levels_from_several_data_folders(tmp_path):
+    """``train_detector --data A --data B``: the levels of both folders, in that order, even where both have
+    an image of the same name; a folder without an index is a clear error."""
+    import json
+
+    import cv2
+
+    from coastforge.train.train_detector import Sampler
+
+    for name, seed in (("A", 1000), ("B", 2000)):
+        d = tmp_path / name
+        d.mkdir()
+        cv2.imwrite(str(d / "lvl.png"), np.full((64, 64, 3), seed // 1000 * 50, np.uint8))
+        item = {"image": "lvl.png", "preset": "beach", "seed": seed,
+                "boxes": [[0, 32.0, 32.0, 20.0, 8.0, 0.0]]}
+        (d / "index.json").write_text(json.dumps({"work_gsd_m": 0.2, "items": [item]}))
+    s = Sampler([tmp_path / "A", tmp_path / "B"], 48, np.random.default_rng(0))
+    assert [it["seed"] for it in s.items] == [1000, 2000]
+    assert sorted(int(v[0, 0, 0]) for v in s.images.values()) == [50, 100]
+    crop, boxes = s.sample()
+    assert crop.shape == (48, 48, 3) and boxes.shape[1] == 6
+    with pytest.raises(InputError, match="no training index"):
+        Sampler([tmp_path / "A", tmp_path / "C"], 48, np.random.default_rng(0))

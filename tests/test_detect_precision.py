@@ -133,3 +133,10 @@ def test_an_unclear_boat_in_a_row_takes_its_clear_neighbours_axis():
     # neighbours that disagree with each other say nothing
     split = [replace(row[0], yaw_deg=86.0), row[1], replace(row[2], yaw_deg=96.0)]  # 8° and 18° off it
     assert align_with_neighbours(split, [1.6, 1.05, 1.5]) == split
+    # a small unclear boat 60 px from a long clear one is not moored beside it: its reach is set by the
+    # shorter of the two (3 x 18 px), not the yacht's 3 x 45 px
+    dinghy = Detection("boat", 0.8, 160.0, 100.0, 18.0, 7.0, 80.0)
+    yacht = Detection("boat", 0.8, 100.0, 100.0, 45.0, 14.0, 90.0)
+    assert align_with_neighbours([yacht, dinghy], [1.6, 1.05]) == [yacht, dinghy]
+    near = replace(dinghy, cx_px=130.0)
+    assert align_with_neighbours([yacht, near], [1.6, 1.05])[1].yaw_deg == pytest.approx(90.0, abs=0.01)
