@@ -228,3 +228,42 @@ def test_training_samples_levels_from_several_data_folders(tmp_path):
     assert crop.shape == (48, 48, 3) and boxes.shape[1] == 6
     with pytest.raises(InputError, match="no training index"):
         Sampler([tmp_path / "A", tmp_path / "C"], 48, np.random.default_rng(0))
+
+
+def test_tta_axes_average_the_turned_crops_axes_and_keep_the_front(monkeypatch):
+    """``tta_axes``: the network is run on the boat's crop turned by 90, 180 and 270°; each turned pass's box
+    is found where the boat's centre lands and its yaw turned back, then averaged (as 2θ, by score) with the
+    tile's own pass. Here a stand-in network reads a bright bar's axis from its image moments, so every
+    turned pass sees the true axis (30°), while the tile's pass said 162° (12° off, the front at the other
+    end)."""
+    import cv2
+
+    work = np.zeros((200, 200, 3), np.uint8)
+    box = cv2.boxPoints(((90.0, 110.0), (40.0, 10.0), -30.0))  # cv2's angle is clockwise on screen
+    cv2.fillConvexPoly(work, box.astype(np.int32), (255, 255, 255))
+    det = LearnedDetector(DetectConfig())
+    seen = []
+
+    def fake_run(crop, threshold=None):
+        m = cv2.moments((crop[:, :, 0] > 128).astype(np.uint8), binaryImage=True)
+        cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
+        theta = 0.5 * math.degrees(math.atan2(2 * m["mu11"], m["mu20"] - m["mu02"]))  # rows point down
+        seen.append(crop.shape[:2])
+        far = [1, 0.9, cx + 30, cy, 40.0, 10.0, 0.0, 0.9]  # another class, elsewhere: ignored
+        return np.array([[0, 0.9, cx, cy, 40.0, 10.0, -theta, 0.9], far])
+
+    monkeypatch.setattr(det, "run", fake_run)
+    from coastforge.types import Detection
+
+    # detections at half the scale, the box centre 7 px off the bar's (it must be followed through the turns)
+    boat = Detection("boat", 0.9, 48.0, 53.0, 20.0, 5.0, 162.0, True, 0.9)
+    car = Detection("vehicle", 0.9, 20.0, 20.0, 10.0, 4.0, 5.0, True, 0.9)
+    out = det.tta_axes(work, [boat, car], 2.0, 2.0)
+    assert len(seen) == 3 and seen[0] == (64, 64)  # three turned passes of a 64-px crop, for the boat only
+    assert out[1] is car
+    # the mean of 2θ over 162° once and 30° three times, equal scores: an axis of 20.5°; the front stays at
+    # the end the detector chose (162°), so 200.5° = -159.5°
+    mean = np.exp(2j * np.radians(162.0)) + 3 * np.exp(2j * np.radians(30.0))
+    assert np.degrees(np.angle(mean)) / 2 == pytest.approx(20.5, abs=0.1)
+    assert out[0].yaw_deg == pytest.approx(-159.5, abs=1.0)
+    assert (out[0].cx_px, out[0].length_px, out[0].heading_known) == (48.0, 20.0, True)

@@ -83,6 +83,9 @@ class DetectConfig:
     backend: str = "classical"
     hybrid_union: bool = False  # hybrid backend: also keep classical boats no learned box overlaps
     hybrid_support: float = 0.1  # ... only where the net's boat score reaches this (0: keep them all)
+    # learned and hybrid backends: each confident boat's axis averaged with the network's on its crop turned
+    # by 90, 180 and 270° (see ``LearnedDetector.tta_axes``); False: the one pass's axis
+    axis_tta: bool = True
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0
     min_vehicle_length_m: float = 3.0
