@@ -1,7 +1,7 @@
 """The ``hybrid`` detector: the learned network for boats, vehicles and buoys, the classical detector for piers.
 
 The learned network (trained on coastforge's renders) is far better on rendered scenes (boats: recall 1.00 vs
-0.72, orientation 0.7-1.7° vs 25°, heading 98 % vs 86 %) but finds fewer boats on the real marina photo
+0.72, orientation 0.6-1.2° vs 25°, heading 98 % vs 86 %) but finds fewer boats on the real marina photo
 (0.63 vs 0.89); it does not detect piers. Learned boats far from the classical detector's water are on land
 (the net takes some buses, vans and roofs for boats): vehicle-sized ones become vehicles, others are
 dropped (real marina precision 0.81 -> 0.91 with an earlier net); a boat the net scores nearly as much a
