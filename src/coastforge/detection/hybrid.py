@@ -21,7 +21,7 @@ learned box overlaps or mostly contains, when they pass these checks:
 
 On the real DOTA marina (also used to choose these rules) this takes recall from 0.63 to 0.89 at a
 precision of 0.85 (0.97 outside the right strip DOTA labelled only partly; 0.92 at 0.87 with the class
-map); on synthetic levels of seeds 0-2 it adds one false boat per resolution to the net's.
+map); on synthetic levels of seeds 0-2 it adds one or two false boats per resolution to the net's.
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..config import DetectConfig
 from ..errors import InputError
+from ..frames import wrap_deg, wrap_half_deg
 from ..types import ClassMap, Detection, GeoImage
 from .nms import rotated_nms
 
@@ -255,9 +256,7 @@ class LearnedDetector:
                 j = int(np.argmin(dist))
                 if dist[j] <= TTA_MATCH * length:
                     acc += rows[j, 1] * np.exp(2j * np.radians(rows[j, 6] - 90.0 * k))
-            if abs(acc) == 0:
-                continue
             axis = math.degrees(np.angle(acc)) / 2.0
-            turn = (axis - d.yaw_deg + 90.0) % 180.0 - 90.0  # to the nearer end of the mean axis
-            out[i] = replace(d, yaw_deg=float((d.yaw_deg + turn + 180.0) % 360.0 - 180.0))
+            turn = wrap_half_deg(axis - d.yaw_deg)  # to the nearer end of the mean axis
+            out[i] = replace(d, yaw_deg=float(wrap_deg(d.yaw_deg + turn)))
         return out

@@ -318,8 +318,7 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
 
         data_dir = out / "data"
         generate(data_dir, list(range(100 + seed * 1000, 100 + seed * 1000 + 1000)), minutes=data_minutes)
-    dirs = [Path(d) for d in (data_dir if isinstance(data_dir, (list, tuple)) else [data_dir])]
-    sampler = Sampler(dirs, crop, stage_rng(seed, "train", "detector", "samples"))
+    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"))
     net = build_model(width)
     previous = None
     if init is not None:  # continue an earlier run (its settings are kept in the record)
@@ -379,7 +378,7 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
         "outputs": {"heat": "sigmoid centre heatmaps", "peaks": "heat at 3x3 local maxima, else 0",
                     "reg": "offset(2) log(len/4) log(wid/4) cos2t sin2t cos t sin t"},
         "training": {"seed": seed, "minutes": minutes, "steps": step, "batch": batch, "crop_px": crop,
-                     "lr": lr, "width": width, "threads": threads, "data": ", ".join(map(str, dirs)),
+                     "lr": lr, "width": width, "threads": threads, "data": ", ".join(map(str, sampler.dirs)),
                      "levels": len(sampler.items),
                      "presets": sorted({it["preset"] for it in sampler.items}),
                      "seeds": [min(it["seed"] for it in sampler.items), max(it["seed"] for it in sampler.items)],
