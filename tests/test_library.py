@@ -668,3 +668,25 @@ def test_library_glbs_are_gltf_y_up_and_load_back_z_up(tmp_path):
     m = lib.mesh("runabout")
     L, W, H = lib.asset("runabout").dims_m
     assert abs(m.extents[0] - L) < 0.05 * L and abs(m.extents[2] - H) < 0.05 * H  # back to z up
+
+
+def test_library_bench_real_crops_skip_with_the_reason(tmp_path):
+    """Without the shared data the retrieval benchmark's real part says what is missing instead of failing."""
+    from coastforge.bench.library import real_queries
+
+    crops, why = real_queries(tmp_path)
+    assert crops == [] and "marina_p0861" in why and "vehicles_p1053" in why
+
+
+@pytest.mark.shared_data
+def test_library_bench_real_crops_carry_their_category(shared_data):
+    """The labelled DOTA ships and vehicles become square crops centred on them, with their category."""
+    from coastforge.bench.library import real_queries
+
+    crops, why = real_queries(shared_data)
+    assert why == ""
+    cats = [c for *_x, c in crops]
+    assert cats.count("boat") == 105 and cats.count("vehicle") == 4
+    for img, gsd, aid, _c in crops:
+        h, w = img.shape[:2]
+        assert aid is None and gsd in (0.2, 0.125) and h == w and h >= 12 and img.dtype == np.uint8
