@@ -231,15 +231,24 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
         by_cat.setdefault(a.category, []).append(a)
     sm = shape_matcher(library) if config.shape else None
     gsd_img = image.grid.gsd_m
+    # one index search per category for all its detections (a search per detection costs ~1 ms in calls)
+    pools: dict[str, list] = {}
+    hits_of: dict[int, list] = {}
+    for cat in dict.fromkeys(d.category for _, d in todo):
+        cats = ASSET_CATEGORIES_FOR[cat]
+        pools[cat] = pool = [a for c in cats for a in by_cat.get(c, [])]
+        if not pool:
+            raise LibraryError(
+                f"the asset library has no {'/'.join(cats)} asset to match a detected {cat}; add one to the "
+                "library (coastforge library build) or use the starter kit")
+        rows = [row for row, (_, d) in enumerate(todo) if d.category == cat]
+        for row, h in zip(rows, library.search(vecs[rows], k=len(pool), category=cats[0])):
+            hits_of[row] = h
     decisions = []
     for row, (i, d) in enumerate(todo):
         cats = ASSET_CATEGORIES_FOR[d.category]
-        pool = [a for c in cats for a in by_cat.get(c, [])]
-        if not pool:
-            raise LibraryError(
-                f"the asset library has no {'/'.join(cats)} asset to match a detected {d.category}; add one to the "
-                "library (coastforge library build) or use the starter kit")
-        hits = library.search(vecs[row:row + 1], k=len(pool), category=cats[0])[0]
+        pool = pools[d.category]
+        hits = hits_of[row]
         appearance = dict(hits)
         L, W = d.length_px * gsd_img, d.width_px * gsd_img
         bg = "ground" if d.category == "vehicle" else "water"
