@@ -66,3 +66,48 @@ def test_classical_labels_a_grey_path_across_a_lawn_sidewalk():
     lot = np.zeros_like(path)
     lot[130:180, 20:100] = True
     assert (cm.ids[lot] == ASPHALT).mean() > 0.9
+
+
+def _pavement_and_stones(seed: int = 0):
+    """At 0.1 m/px: light smooth paving (left) beside light riprap (right), stones ~0.2-0.3 m across
+    that average out on the classical segmenter's ~0.4 m working raster. Returns rgb and both masks."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    h, w = 320, 480
+    rgb = np.empty((h, w, 3), np.float32)
+    rgb[:] = (176, 176, 172)  # L* ~ 71
+    stones = np.zeros((h, w), bool)
+    stones[:, w // 2:] = True
+    # a stone field: blurred noise on a 2 px (0.2 m) lattice
+    field = cv2.resize(rng.normal(0.0, 1.0, (h // 2, w // 2)).astype(np.float32), (w, h),
+                       interpolation=cv2.INTER_NEAREST)
+    field = cv2.GaussianBlur(field, (0, 0), 0.7)
+    rgb[stones] += 30.0 * field[stones, None]
+    rgb += rng.normal(0, 1.0, (h, w, 1))
+    return np.clip(rgb, 0, 255).astype(np.uint8), ~stones, stones
+
+
+def test_riprap_that_averages_out_on_the_working_raster_is_not_sidewalk():
+    """Fine texture, measured on the image itself, keeps light riprap out of the sidewalk seeds: on the
+    0.4 m working raster its small stones are as smooth as paving (the real marina's riprap was
+    segmented as path)."""
+    import cv2
+
+    from coastforge.segmentation.classical import fine_texture
+
+    full, paving, stones = _pavement_and_stones()
+    small = cv2.resize(full, (120, 80), interpolation=cv2.INTER_AREA)
+    water = np.zeros((80, 120), bool)
+    core_p = np.zeros((80, 120), bool)
+    core_p[10:70, 8:50] = True
+    core_s = np.zeros((80, 120), bool)
+    core_s[10:70, 70:112] = True
+    coarse = land_seeds(compute_features(small, 0.4), water)
+    # the working raster alone cannot tell them apart: both are light, neutral and smooth there
+    assert (coarse[core_p] == SIDEWALK).mean() > 0.9 and (coarse[core_s] == SIDEWALK).mean() > 0.5
+    F = compute_features(small, 0.4, fine=fine_texture(full, 0.1, (80, 120)))
+    seeds = land_seeds(F, water)
+    assert (seeds[core_p] == SIDEWALK).mean() > 0.9
+    assert (seeds[core_s] == SIDEWALK).mean() < 0.05
+    assert F.stack().shape[1] == compute_features(small, 0.4).stack().shape[1] + 1  # and a classifier feature

@@ -4,7 +4,9 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
 
 1. Per-pixel colour (CIE Lab, saturation, excess green, blue dominance) and texture at two metric
    scales (std of lightness over ~1.2 m and ~4 m, gradient energy, gradient coherence, share of bright
-   pixels), plus colour and texture averaged over ~8 m as context.
+   pixels), plus colour and texture averaged over ~8 m as context; when the image is finer than the
+   working raster, also the std of lightness over ~0.6 m measured on the image itself (riprap's stones
+   and a verge's tufts average out at ~0.4 m/px; paths and pavements stay smooth).
 2. Water first, because everything downstream depends on it: connected regions that are smooth at both
    scales, cut at colour edges, water-coloured (blue, turquoise, green-teal, green-olive, very dark;
    neutral grey only when very large) and large in metres and pixels. Same-coloured smaller pieces
@@ -34,7 +36,7 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -87,6 +89,11 @@ SHADE_MAX_GSD_M = 1.0  # crowns and their shade are resolved only on fine images
 SHADE_FROM = (ASPHALT, SIDEWALK, DIRT)
 PATH_RING_M = 2.5  # ... and at most a quarter of the ground this far around it is paved
 ROCK_MIN_TEX = 5.0  # riprap's std of L* over ~1.2 m is above this
+# fine texture: std of L* over ~FINE_TEX_M measured on the image itself (the working raster is ~0.4 m/px,
+# where a riprap's 0.3-1 m stones average out), then averaged onto the working grid; a classifier feature,
+# and paths and pavements are smooth at that scale (marina photo: sidewalk median 1.8, riprap 5.1)
+FINE_TEX_M = 0.6
+PATH_MAX_FINE = 4.0
 SPECK_SKEW = 4.0  # speckled sand: median minus mean L* over ~2 m above this
 
 
@@ -119,6 +126,7 @@ class Features:
     ctx: np.ndarray  # (H, W, 4) L, a, b, tex1 averaged over ~8 m
     exg_m: np.ndarray  # excess green of the mean RGB over ~3 m (bright pixels weigh more than dark ones)
     gsd_m: float
+    fine: np.ndarray | None = None  # std of L over ~FINE_TEX_M at the image's resolution (None: not finer)
 
     def stack(self) -> np.ndarray:
         """(H*W, F) matrix for the classifier."""
@@ -126,6 +134,8 @@ class Features:
         lg = np.log1p
         cols = [self.L, self.a, self.b, self.sat, self.exg, self.bdom, lg(self.tex1), lg(self.tex2), lg(self.grad),
                 self.bright, self.coh, self.ctx[..., 0], self.ctx[..., 1], self.ctx[..., 2], lg(self.ctx[..., 3])]
+        if self.fine is not None:
+            cols.append(lg(self.fine))
         return np.stack([c.ravel() for c in cols], axis=1).astype(np.float32)
 
 
@@ -136,7 +146,20 @@ def _labels_in(lab: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
     return table[lab]
 
 
-def compute_features(rgb: np.ndarray, gsd_m: float) -> Features:
+def fine_texture(rgb: np.ndarray, gsd_m: float, shape: tuple[int, int]) -> np.ndarray:
+    """Std of L* over ~``FINE_TEX_M`` on ``rgb`` (the full-resolution image), averaged onto a grid of
+    ``shape`` (H, W): texture the working raster is too coarse to show (riprap's stones, a verge's tufts)."""
+    # 8-bit Lab (L* x 255/100) is several times faster on a large image than float Lab, and its 0.4-unit
+    # steps are far below the texture that matters here
+    L = cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB)[..., 0].astype(np.float32) * (100.0 / 255.0)
+    t = _box_std(L, _odd(FINE_TEX_M / gsd_m))
+    h, w = shape
+    return t if t.shape == (h, w) else cv2.resize(t, (w, h), interpolation=cv2.INTER_AREA)
+
+
+def compute_features(rgb: np.ndarray, gsd_m: float, fine: np.ndarray | None = None) -> Features:
+    """Features of ``rgb`` at ``gsd_m``; ``fine``: ``fine_texture`` of the full-resolution image, when
+    ``rgb`` is a downsampled copy."""
     f = rgb.astype(np.float32) * (1.0 / 255.0)
     lab = cv2.cvtColor(f, cv2.COLOR_RGB2LAB)
     L, a, b = lab[..., 0], lab[..., 1], lab[..., 2]
@@ -162,7 +185,7 @@ def compute_features(rgb: np.ndarray, gsd_m: float) -> Features:
     k3 = _odd(3.0 / gsd_m)
     fm = cv2.blur(f, (k3, k3))
     exg_m = (2.0 * fm[..., 1] - fm[..., 0] - fm[..., 2]) / (fm.sum(axis=2) + 1e-3)
-    return Features(L, a, b, sat, exg, bdom, tex1, tex2, grad, bright, coh, ctx, exg_m, gsd_m)
+    return Features(L, a, b, sat, exg, bdom, tex1, tex2, grad, bright, coh, ctx, exg_m, gsd_m, fine)
 
 
 # ---------------------------------------------------------------------------------------------- water
@@ -476,6 +499,8 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
     # a footpath's pixels the rules took for asphalt (or were unsure of) are sidewalk
     path = footpaths(F, water, seeds, chroma, a)
     seeds[path & ((seeds < 0) | (seeds == ASPHALT))] = SIDEWALK
+    if F.fine is not None:  # paths and pavements are smooth at the fine scale; light riprap is not
+        seeds[(seeds == SIDEWALK) & (F.fine >= PATH_MAX_FINE)] = -1
     return seeds
 
 
@@ -814,14 +839,18 @@ class ClassicalSegmenter:
             s *= math.sqrt(cfg.max_work_px / n)
         return s
 
-    def segment_small(self, rgb: np.ndarray, gsd_m: float, seed: int, pre: tuple | None = None):
+    def segment_small(self, rgb: np.ndarray, gsd_m: float, seed: int, pre: tuple | None = None,
+                      fine: np.ndarray | None = None):
         """Class ids, water mask, features and open-water mask at the resolution of ``rgb`` (the
-        working resolution). ``pre`` = (features, water, open water) already computed for ``rgb``."""
+        working resolution). ``pre`` = (features, water, open water) already computed for ``rgb``;
+        ``fine``: ``fine_texture`` of the full-resolution image on this grid."""
         cfg = self.config
         if pre is not None:
             F, water, open_water = pre
+            if fine is not None and F.fine is None:
+                F = replace(F, fine=fine)
         else:
-            F = compute_features(rgb, gsd_m)
+            F = compute_features(rgb, gsd_m, fine)
             water, open_water = detect_water(F, cfg, return_open=True)
         green = greenness(F, water)
         seeds = land_seeds(F, water, cfg.rocks_shore_m, green)
@@ -891,13 +920,15 @@ class ClassicalSegmenter:
         H, W = rgb.shape[:2]
         g = image.grid
         s = self.work_scale(W, H, g.gsd_m)
+        fine = None
         if s < 0.999:
             w, h = max(8, int(round(W * s))), max(8, int(round(H * s)))
             small = cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA)
+            fine = fine_texture(rgb, g.gsd_m, (h, w))
         else:
             w, h, small = W, H, rgb
         gsd_w = g.gsd_m * W / w
-        ids, water, F, open_water = self.segment_small(small, gsd_w, seed, pre)
+        ids, water, F, open_water = self.segment_small(small, gsd_w, seed, pre, fine)
         if (w, h) != (W, H):
             ids = refine_water_edge(rgb, ids, water, F, open_water=open_water)
         return ClassMap(ids=np.ascontiguousarray(ids, dtype=np.uint8), grid=g)
