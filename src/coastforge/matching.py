@@ -246,7 +246,6 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
             hits_of[row] = h
     decisions = []
     for row, (i, d) in enumerate(todo):
-        cats = ASSET_CATEGORIES_FOR[d.category]
         pool = pools[d.category]
         hits = hits_of[row]
         appearance = dict(hits)

@@ -29,6 +29,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from ..rng import stage_rng
+from .segmentation import SHARED as SHARED_DATA  # ../shared/data beside the project
 
 MATCHED = ("boat", "vehicle", "buoy")  # the categories the matcher assigns assets to
 
@@ -92,7 +93,6 @@ def synth_queries(lib, levels):
     return out
 
 
-SHARED_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data"
 # the real DOTA crops of ../shared/data: folder, its (estimated) GSD, DOTA class -> our category
 REAL_SETS = (("marina_p0861", 0.2, {"ship": "boat"}),
              ("vehicles_p1053", 0.125, {"small vehicle": "vehicle", "large vehicle": "vehicle"}))
