@@ -405,8 +405,9 @@ def test_marina_water_iou_and_miou_floor(shared_data):
     cm = segment(image, SegmentConfig())
     res = class_ious(cm.ids, rasterize_polygons(spec, cm.ids.shape))
     assert res["iou"]["water"] >= 0.95
-    # a floor against regressions on a real photo (measured 0.584; the segmentation issue asks for 0.6)
-    assert res["miou"] >= 0.575, res
+    # a floor against regressions on a real photo (measured 0.603, 0.593-0.603 over root seeds 0-4;
+    # 0.584 before car rows had a class of their own)
+    assert res["miou"] >= 0.59, res
 
 
 # ----------------------------------------------------------------------- classical: cars, canopies, edges
@@ -538,3 +539,20 @@ def test_cleaning_benchmark_restores_the_surface_under_removed_boats():
     assert r["pixels"] > 500
     assert r["mae"] < 0.5 * r["input_mae"]
     assert r["left"] < 0.5 * r["input_left"]
+
+
+def test_fold_rows_gives_car_rows_to_pavement_only_where_rocks_would_win():
+    from coastforge.classes import ROCKS
+    from coastforge.segmentation.classical import CAR_ROW, _fold_rows
+
+    classes = np.array([ASPHALT, 2, TREES, ROCKS, CAR_ROW])  # 2 = sidewalk
+    proba = np.array([
+        [0.10, 0.05, 0.05, 0.30, 0.50],  # a car row the terrain classes would call rocks -> asphalt
+        [0.05, 0.10, 0.05, 0.30, 0.50],  # ... sidewalk where that is likelier than asphalt
+        [0.05, 0.05, 0.30, 0.10, 0.50],  # a dark crown: the row's share is dropped, trees stay
+    ], np.float32)
+    kept, out = _fold_rows(classes, proba)
+    assert list(kept) == [ASPHALT, 2, TREES, ROCKS]
+    assert np.allclose(out.sum(axis=1), 1.0)
+    assert out[0].argmax() == 0 and out[1].argmax() == 1 and out[2].argmax() == 2
+    assert np.allclose(out[2], proba[2, :4] / proba[2, :4].sum())

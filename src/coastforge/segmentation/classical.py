@@ -52,6 +52,10 @@ LAND = (ASPHALT, SIDEWALK, GRASS, TREES, DIRT, ROCKS, SAND)
 # green-teal water (hue above ~149 deg in a*b*: b* < 0.6 |a*|) is bluer than lawns and canopies, whose
 # yellow-green sits at ~120-140 deg (b* > 0.85 |a*|) in our renders and in photos
 TEAL_MAX_B = 0.6
+# turbid olive-grey water: chroma in Lab below MURKY_MAX_CHROMA, L* below MURKY_MAX_L (pavement under a
+# yellow haze has the same hue, a little lighter)
+MURKY_MAX_CHROMA = 14.0
+MURKY_MAX_L = 40.0
 # water does not grow into rough ground: std of L* over ~1.2 m above ROUGH_T1, share of bright pixels
 # below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
 ROUGH_T1 = 3.0
@@ -73,6 +77,7 @@ BANK_T1 = 4.0
 CAR_MIN_TEX = 6.0
 CAR_MAX_GREEN = 0.01
 CAR_BANK_M = 6.0
+CAR_ROW = N_CLASSES  # the classifier's extra class for car rows (never in a class map)
 # footpaths: smooth (std of L* over ~1.2 m below this) neutral strips narrower than PATH_MAX_W_M, at
 # least PATH_MIN_M2 in area and PATH_MIN_LEN_M long
 PATH_MAX_TEX = 4.0
@@ -229,7 +234,10 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     ga = np.hypot(cv2.Sobel(F.a, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.a, cv2.CV_32F, 0, 1, ksize=3))
     gb = np.hypot(cv2.Sobel(F.b, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.b, cv2.CV_32F, 0, 1, ksize=3))
     cedge = (ga + gb) * 0.125 > 5.0
-    cand = (smooth & colour & ~cedge).astype(np.uint8)
+    # murky olive-grey (turbid lakes and rivers): confirmed below only as a very large, very flat region,
+    # and darker than pavement under a yellow haze, which has the same hue
+    murky = (np.hypot(F.a, F.b) < MURKY_MAX_CHROMA) & (F.a < -2.0) & (F.L < MURKY_MAX_L)
+    cand = (smooth & (colour | murky) & ~cedge).astype(np.uint8)
     n, lab, stats, _c = cv2.connectedComponentsWithStats(cand, connectivity=4)
     if n <= 1:
         return (np.zeros((h, w), bool),) * 2 if return_open else np.zeros((h, w), bool)
@@ -255,6 +263,10 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
                 or (mL[c] < 18 and mb[c] < 8.0) or (ma[c] < -6.0 and mb[c] < max(6.0, TEAL_MAX_B * -ma[c])))
         if cast and not lawn:
             keep[c] = True
+        elif mchroma[c] < MURKY_MAX_CHROMA and ma[c] < -2.0 and mL[c] < MURKY_MAX_L:
+            # Murky olive-grey (turbid water; pavement is not this green): very flat and a quarter of
+            # the image, however small the image
+            keep[c] = area >= max(cfg.water_min_m2, 0.25 * image_m2) and mt2[c] < 0.7 * t2
         elif mchroma[c] < 9.0:
             # Neutral grey: asphalt looks like this too. Only a region that is very large and very
             # flat is taken as (overcast or turbid) water.
@@ -568,6 +580,28 @@ def parked_cars(F: Features, green: np.ndarray, seeds: np.ndarray, reach_m: floa
     return near & (F.tex1 > CAR_MIN_TEX) & (green < CAR_MAX_GREEN)
 
 
+def _fold_rows(classes: np.ndarray, proba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Hand the car-row class's probability to pavement where the pixel would otherwise be rocks, sand
+    or dirt (what a car row is mistaken for); elsewhere (crowns, lawns, paths) drop it: there it only
+    stood in for texture the other classes lack. Pavement means asphalt, or sidewalk where that is the
+    likelier of the two."""
+    j = classes.size - 1
+    rest = proba[:, :j]
+    alt = classes[:j][rest.argmax(axis=1)]
+    row = np.where(np.isin(alt, (ROCKS, SAND, DIRT)), proba[:, j], 0.0)
+    out = rest.copy()
+    ia = np.flatnonzero(classes[:j] == ASPHALT)
+    isw = np.flatnonzero(classes[:j] == SIDEWALK)
+    if ia.size and isw.size:
+        to_sw = out[:, isw[0]] > out[:, ia[0]]
+        out[:, ia[0]] += np.where(to_sw, 0.0, row)
+        out[:, isw[0]] += np.where(to_sw, row, 0.0)
+    elif ia.size or isw.size:
+        out[:, (ia if ia.size else isw)[0]] += row
+    out /= np.maximum(out.sum(axis=1, keepdims=True), 1e-12)
+    return classes[:j], out
+
+
 def _train_predict(X: np.ndarray, y: np.ndarray, Xall: np.ndarray, seed: int, per_class: int = 4000,
                    reg: float = 0.05):
     """Fit one full-covariance Gaussian per class (QDA) on balanced seed samples; return the classes and
@@ -856,6 +890,14 @@ class ClassicalSegmenter:
         seeds = land_seeds(F, water, cfg.rocks_shore_m, green)
         h, w = water.shape
         land = ~water
+        # rows of parked cars get a class of their own while the classifier learns: folded into
+        # pavement they widen its spread, left out they are mistaken for rocks, sand or dirt
+        cars = parked_cars(F, green, seeds)
+        rows = cars & (seeds < 0) & land
+        train = seeds
+        if rows.sum() >= 20:
+            train = seeds.copy()
+            train[rows] = CAR_ROW
         ids = np.full((h, w), WATER, np.uint8)
         present = [c for c in LAND if (seeds == c).sum() >= 20]
         if land.any():
@@ -866,9 +908,11 @@ class ClassicalSegmenter:
                 ids[land] = self._rule_fill(seeds, land, present)
             else:
                 X = np.concatenate([F.stack(), green.reshape(-1, 1)], axis=1)
-                m = seeds.ravel() >= 0
-                classes, proba = _train_predict(X[m], seeds.ravel()[m], X[land.ravel()],
+                m = train.ravel() >= 0
+                classes, proba = _train_predict(X[m], train.ravel()[m], X[land.ravel()],
                                                 stage_seed(seed, "segment", "classical"))
+                if classes[-1] == CAR_ROW:
+                    classes, proba = _fold_rows(classes, proba)
                 full = np.zeros((h * w, N_CLASSES), np.float32)
                 full[np.ix_(land.ravel(), classes)] = proba
                 full = full.reshape(h, w, N_CLASSES)
@@ -886,7 +930,6 @@ class ClassicalSegmenter:
                 full[..., TREES] *= np.where(notree, 0.05, 1.0).astype(np.float32)
                 # parked cars stand on pavement: not trees, dirt, sand, sidewalk, nor rocks, except on
                 # the bank itself (a revetment's stones beside a quay's pavement look like a car row)
-                cars = parked_cars(F, green, seeds)
                 for c in (TREES, DIRT, SAND, SIDEWALK):
                     full[..., c] *= np.where(cars, 0.05, 1.0).astype(np.float32)
                 if d is not None:
