@@ -550,9 +550,10 @@ def test_fold_rows_gives_car_rows_to_pavement_only_where_rocks_would_win():
         [0.10, 0.05, 0.05, 0.30, 0.50],  # a car row the terrain classes would call rocks -> asphalt
         [0.05, 0.10, 0.05, 0.30, 0.50],  # ... sidewalk where that is likelier than asphalt
         [0.05, 0.05, 0.30, 0.10, 0.50],  # a dark crown: the row's share is dropped, trees stay
+        [0.00, 0.00, 0.00, 0.00, 1.00],  # only the row class explains it: left to its neighbours
     ], np.float32)
     kept, out = _fold_rows(classes, proba)
     assert list(kept) == [ASPHALT, 2, TREES, ROCKS]
-    assert np.allclose(out.sum(axis=1), 1.0)
+    assert np.allclose(out[:3].sum(axis=1), 1.0) and not out[3].any()
     assert out[0].argmax() == 0 and out[1].argmax() == 1 and out[2].argmax() == 2
     assert np.allclose(out[2], proba[2, :4] / proba[2, :4].sum())

@@ -598,6 +598,8 @@ def _fold_rows(classes: np.ndarray, proba: np.ndarray) -> tuple[np.ndarray, np.n
         out[:, isw[0]] += np.where(to_sw, row, 0.0)
     elif ia.size or isw.size:
         out[:, (ia if ia.size else isw)[0]] += row
+    # a pixel that only the row class explains at all keeps no probability: the majority filter that
+    # follows gives it its neighbours' class (pavement beside a car row, canopy inside a dark crown)
     out /= np.maximum(out.sum(axis=1, keepdims=True), 1e-12)
     return classes[:j], out
 
