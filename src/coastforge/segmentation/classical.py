@@ -59,6 +59,9 @@ MURKY_MAX_L = 40.0
 # water does not grow into rough ground: std of L* over ~1.2 m above ROUGH_T1, share of bright pixels
 # below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
 ROUGH_T1 = 3.0
+# an enclosed blob this large and this much rough (riprap) is a breakwater: it is not filled as water
+BREAKWATER_MIN_M2 = 300.0
+BREAKWATER_ROUGH = 0.25
 ROUGH_BRIGHT = 0.05
 ROUGH_COH = 0.55
 # riprap's stones are resolved as texture only on images finer than this (m/px)
@@ -343,11 +346,12 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     # vegetation (yellow-green, textured, far from the water colour) keeps an enclosed blob land;
     # teal/cyan shadows between boats are not vegetation
     veg = (((F.exg > 0.12) & (F.b > 0.0)) | ((F.a < -8.0) & (F.b > 5.0))) & (de2 > 100.0) & (F.tex1 > 1.0)
-    closed = close_water(water, F, cfg, veg)
+    closed = close_water(water, F, cfg, veg, rough)
     return (closed, water) if return_open else closed
 
 
-def close_water(water: np.ndarray, F: Features, cfg: SegmentConfig, veg: np.ndarray | None = None) -> np.ndarray:
+def close_water(water: np.ndarray, F: Features, cfg: SegmentConfig, veg: np.ndarray | None = None,
+                rough: np.ndarray | None = None) -> np.ndarray:
     """Close narrow gaps (boats side by side, pier fingers, gangways) and fill enclosed blobs up to a
     pier-cluster size, unless they look vegetated (islands with trees or grass stay land).
 
@@ -384,6 +388,11 @@ def close_water(water: np.ndarray, F: Features, cfg: SegmentConfig, veg: np.ndar
         # a blob mostly outlined by water, or a bright (boats, decks) strip along the border
         enclosed = (water_share >= 0.6) | ((water_share >= 0.4) & (bright >= 0.2))
         fill = (area_m2 <= cfg.water_hole_max_m2) & (vfrac < 0.3) & enclosed
+        if rough is not None:
+            # a breakwater cut off by the closing is rubble, a quarter or more of it rough; a pier
+            # cluster's decks and hulls are smooth or straight-edged
+            rfrac = np.bincount(idx, weights=rough.ravel().astype(np.float64), minlength=n) / cnt
+            fill &= ~((area_m2 >= BREAKWATER_MIN_M2) & (rfrac >= BREAKWATER_ROUGH))
         fill |= (area_m2 <= 60.0) & (on_border == 0)  # anything boat-sized in open water is filled
         fill[0] = False
         closed |= fill[lab]
