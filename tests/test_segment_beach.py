@@ -148,3 +148,26 @@ def test_detached_breakwater_is_not_filled_as_water():
     ids = segment(image, SegmentConfig(backend="classical")).ids
     assert _iou(ids == WATER, ~land & ~bw) > 0.95
     assert (ids[bw] == WATER).mean() < 0.25
+
+
+def test_pale_teal_shallows_along_the_shore_are_water():
+    """Shallow water along a bank is lighter than the water beyond it (Lab ~(70, -14, 4) beside
+    ~(54, -17, -7)): too far from the local water colour to grow into, and then taken for lawn by
+    the land classifier (synthetic lake_harbor and rocky_shore lost a 5-10 m strip of shore water)."""
+    from coastforge.segmentation import segment
+
+    rng = np.random.default_rng(0)
+    size, gsd = 400, 0.2
+    yy, xx = np.mgrid[0:size, 0:size]
+    shore = 150 + 10 * np.sin(xx / 40.0)
+    lawn = yy < shore
+    shallow = ~lawn & (yy < shore + 35)  # a 7 m strip, fading into the deeper water over its last 4 m
+    fade = np.clip((yy - shore - 15) / 20.0, 0.0, 1.0)[..., None]
+    rgb = (1 - fade) * np.array((146, 178, 163), np.float32) + fade * np.array((84, 137, 140), np.float32)
+    rgb[lawn] = LAWN
+    rgb[lawn] += rng.normal(0, 6.0, (int(lawn.sum()), 1))
+    rgb += rng.normal(0, 1.0, rgb.shape)
+    image = GeoImage(rgb=np.clip(rgb, 0, 255).astype(np.uint8), grid=Grid(size, size, gsd))
+    ids = segment(image, SegmentConfig(backend="classical")).ids
+    assert (ids[shallow] == WATER).mean() > 0.9
+    assert (ids[lawn] == GRASS).mean() > 0.9

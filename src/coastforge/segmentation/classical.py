@@ -59,6 +59,8 @@ MURKY_MAX_L = 40.0
 # water does not grow into rough ground: std of L* over ~1.2 m above ROUGH_T1, share of bright pixels
 # below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
 ROUGH_T1 = 3.0
+# pale teal shallows (lighter than the water beside them) join the water whatever their contrast to it
+SHALLOW_TEX = 2.0  # ... and smoother than this many times the image's flat texture
 # an enclosed blob this large and this much rough (riprap) is a breakwater: it is not filled as water
 BREAKWATER_MIN_M2 = 300.0
 BREAKWATER_ROUGH = 0.25
@@ -204,14 +206,18 @@ def _disk(radius_px: float) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
 
 
+def _teal(F: Features) -> np.ndarray:
+    """Clear shallow water over sand (bright turquoise) and green-teal seas: bluer than any lawn."""
+    return (F.a < -6.0) & (F.b < np.maximum(6.0, TEAL_MAX_B * -F.a)) & (F.L < 85)
+
+
 def water_colour(F: Features) -> np.ndarray:
     """Pixels whose colour water can have: blue/cyan/teal, dark olive-green, very dark, or dark neutral
     grey."""
     L, a, b = F.L, F.a, F.b
     # blue water: saturated blues have a* > 0, so allow red-green up to ~0.4 |b*| (not purple)
     bluish = ((b < -3.0) | (F.bdom > 0.015)) & (L < 88) & (a < 4.0 + 0.4 * np.maximum(-b, 0.0))
-    # clear shallow water over sand (bright turquoise) and green-teal seas: bluer than any lawn
-    cyan = (a < -6.0) & (b < np.maximum(6.0, TEAL_MAX_B * -a)) & (L < 85)
+    cyan = _teal(F)
     # green-olive water (algae, turbid basins): green at least as strong as yellow, unlike dark forest
     olive = (a < -4.0) & (L < 52) & (b < 1.2 * (-a) + 1.0) & (b > -40.0)
     dark = (L < 20.0) & (a < 6.0)
@@ -325,6 +331,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         rough = (F.tex1 > ROUGH_T1) & (F.bright < ROUGH_BRIGHT) & (F.coh < ROUGH_COH)
     else:
         rough = np.zeros(F.L.shape, bool)
+    teal = _teal(F)
     for _ in range(9):
         before = int(water.sum())
         norm = cv2.blur(wf, (k, k))
@@ -336,7 +343,9 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         shadow = (F.L < Lr - 3.0) & (F.L > 0.25 * Lr) & (np.abs(F.a - ar * sc) + np.abs(F.b - br * sc) < 6.0)
         # very flat pixels continuing the local water colour join whatever their hue (turbid green
         # shallows); a lawn is neither that flat nor that close to the water colour
-        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow) & ~rough
+        # pale teal shallows along a beach or bank: lighter than the water beside them, as smooth
+        pale = teal & (F.L > Lr) & (F.tex1 < SHALLOW_TEX * t1)
+        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow | pale) & ~rough
         n2, lab2 = cv2.connectedComponents((close | water).astype(np.uint8), connectivity=8)
         ids2 = np.unique(lab2[water])
         water = _labels_in(lab2, ids2[ids2 > 0], n2)
