@@ -171,3 +171,26 @@ def test_pale_teal_shallows_along_the_shore_are_water():
     ids = segment(image, SegmentConfig(backend="classical")).ids
     assert (ids[shallow] == WATER).mean() > 0.9
     assert (ids[lawn] == GRASS).mean() > 0.9
+
+
+def test_choppy_olive_water_with_sun_glitter_is_water():
+    """Wind-roughened olive-grey water (Lab ~(58, -7, 7)) sparkles with small bright wave crests: its
+    texture is a lawn's until the glitter is taken out (synthetic marina seed 6 found no water)."""
+    from coastforge.segmentation import segment
+
+    rng = np.random.default_rng(6)
+    size, gsd = 500, 0.2
+    yy, xx = np.mgrid[0:size, 0:size]
+    lawn = xx < 150 + 0.2 * yy
+    rgb = np.zeros((size, size, 3), np.float32)
+    rgb[:] = (132, 143, 122)  # olive-grey water
+    rgb += rng.normal(0, 3.0, (size, size, 1))
+    crests = rng.random((size, size)) < 0.04
+    crests = cv2.dilate(crests.astype(np.uint8), np.ones((1, 2), np.uint8)).astype(bool) & ~lawn
+    rgb[crests] = (235, 238, 230)  # glints a pixel or two across
+    rgb[lawn] = LAWN
+    rgb[lawn] += rng.normal(0, 6.0, (int(lawn.sum()), 1))
+    image = GeoImage(rgb=np.clip(rgb, 0, 255).astype(np.uint8), grid=Grid(size, size, gsd))
+    ids = segment(image, SegmentConfig(backend="classical")).ids
+    assert _iou(ids == WATER, ~lawn) > 0.95
+    assert (ids[lawn] == GRASS).mean() > 0.9

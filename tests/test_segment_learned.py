@@ -169,6 +169,7 @@ def test_network_water_replaces_none_from_the_classical_rules(tmp_path, monkeypa
     from coastforge.segmentation import classical as classical_mod
 
     monkeypatch.setattr(classical_mod, "MURKY_MAX_L", -1.0)
+    monkeypatch.setattr(classical_mod, "MURKY_GREEN_MAX_L", -1.0)
     classical = segment(image, SegmentConfig(backend="classical")).ids == WATER
     assert classical.mean() < 0.01  # ... without it, the rules miss this river entirely
     seg = learned.LearnedSegmenter(SegmentConfig())

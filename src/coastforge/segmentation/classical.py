@@ -56,6 +56,8 @@ TEAL_MAX_B = 0.6
 # yellow haze has the same hue, a little lighter)
 MURKY_MAX_CHROMA = 14.0
 MURKY_MAX_L = 40.0
+MURKY_GREEN_A = -5.0  # ... or a* below this (greener than hazy pavement) and L* below MURKY_GREEN_MAX_L
+MURKY_GREEN_MAX_L = 65.0
 # water does not grow into rough ground: std of L* over ~1.2 m above ROUGH_T1, share of bright pixels
 # below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
 ROUGH_T1 = 3.0
@@ -225,6 +227,21 @@ def water_colour(F: Features) -> np.ndarray:
     return bluish | cyan | olive | dark | neutral
 
 
+def _murky(L, a, b):
+    """Murky olive-grey: low chroma, greener than neutral, and darker than pavement under a yellow haze
+    (which has the same hue) unless clearly greener than it."""
+    return (np.hypot(a, b) < MURKY_MAX_CHROMA) & (((a < -2.0) & (L < MURKY_MAX_L))
+                                                   | ((a < MURKY_GREEN_A) & (L < MURKY_GREEN_MAX_L)))
+
+
+def glint_free_texture(F: Features) -> tuple[np.ndarray, np.ndarray]:
+    """``tex1``, ``tex2`` of the lightness after a grey opening over ~1.2 m: sun glitter and wave
+    crests on choppy water are small bright specks; without them the water is as flat as calm water,
+    while a lawn's or a roof's texture (dark and light alike) stays."""
+    Lo = cv2.morphologyEx(F.L, cv2.MORPH_OPEN, _disk(0.6 / F.gsd_m))
+    return _box_std(Lo, _odd(1.2 / F.gsd_m)), _box_std(Lo, _odd(4.0 / F.gsd_m))
+
+
 def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     """Bool mask of water at the working resolution (boats and piers over water included).
 
@@ -237,15 +254,16 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     floor = float(np.percentile(F.tex1, 20))
     t1 = max(0.8, 2.5 * floor)
     t2 = max(1.5, 3.0 * floor)
-    smooth = (F.tex1 < t1) & (F.tex2 < t2)
+    # smooth once sun glitter is taken out: choppy water sparkles
+    s1, s2 = glint_free_texture(F)
+    smooth = (s1 < t1) & (s2 < t2)
     colour = water_colour(F)
     # cut along colour edges too: water and asphalt of equal lightness meet without any texture
     ga = np.hypot(cv2.Sobel(F.a, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.a, cv2.CV_32F, 0, 1, ksize=3))
     gb = np.hypot(cv2.Sobel(F.b, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.b, cv2.CV_32F, 0, 1, ksize=3))
     cedge = (ga + gb) * 0.125 > 5.0
-    # murky olive-grey (turbid lakes and rivers): confirmed below only as a very large, very flat region,
-    # and darker than pavement under a yellow haze, which has the same hue
-    murky = (np.hypot(F.a, F.b) < MURKY_MAX_CHROMA) & (F.a < -2.0) & (F.L < MURKY_MAX_L)
+    # murky olive-grey (turbid lakes and rivers): confirmed below only as a very large, very flat region
+    murky = _murky(F.L, F.a, F.b)
     cand = (smooth & (colour | murky) & ~cedge).astype(np.uint8)
     n, lab, stats, _c = cv2.connectedComponentsWithStats(cand, connectivity=4)
     if n <= 1:
@@ -261,7 +279,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     cnt = np.bincount(idx, minlength=n).astype(np.float64)
     cnt[cnt == 0] = 1
     mean = lambda v: np.bincount(idx, weights=v.ravel().astype(np.float64), minlength=n) / cnt  # noqa: E731
-    mL, ma, mb, mt2, mexg = mean(F.L), mean(F.a), mean(F.b), mean(F.tex2), mean(F.exg)
+    mL, ma, mb, mt2, mexg = mean(F.L), mean(F.a), mean(F.b), mean(s2), mean(F.exg)
     mchroma = np.hypot(ma, mb)
     image_m2 = h * w * px_m2
     keep = np.zeros(n, bool)
@@ -272,7 +290,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
                 or (mL[c] < 18 and mb[c] < 8.0) or (ma[c] < -6.0 and mb[c] < max(6.0, TEAL_MAX_B * -ma[c])))
         if cast and not lawn:
             keep[c] = True
-        elif mchroma[c] < MURKY_MAX_CHROMA and ma[c] < -2.0 and mL[c] < MURKY_MAX_L:
+        elif _murky(mL[c], ma[c], mb[c]):
             # Murky olive-grey (turbid water; pavement is not this green): very flat and a quarter of
             # the image, however small the image
             keep[c] = area >= max(cfg.water_min_m2, 0.25 * image_m2) and mt2[c] < 0.7 * t2
