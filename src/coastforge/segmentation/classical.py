@@ -106,6 +106,10 @@ ROCK_MIN_TEX = 5.0  # riprap's std of L* over ~1.2 m is above this
 # and paths and pavements are smooth at that scale (marina photo: sidewalk median 1.8, riprap 5.1)
 FINE_TEX_M = 0.6
 PATH_MAX_FINE = 4.0
+# fragments of a crown standing in pavement: at least this share of them trees, this share of their
+# outline asphalt or sidewalk
+CROWN_TREE_SHARE = 0.3
+CROWN_PAVED_RING = 0.5
 SPECK_SKEW = 4.0  # speckled sand: median minus mean L* over ~2 m above this
 
 
@@ -640,11 +644,12 @@ def _fold_rows(classes: np.ndarray, proba: np.ndarray) -> tuple[np.ndarray, np.n
     return classes[:j], out
 
 
-def _train_predict(X: np.ndarray, y: np.ndarray, Xall: np.ndarray, seed: int, per_class: int = 4000,
+def _train_predict(X: np.ndarray, y: np.ndarray, Xall: np.ndarray, seed: int, per_class: int = 50000,
                    reg: float = 0.05):
-    """Fit one full-covariance Gaussian per class (QDA) on balanced seed samples; return the classes and
-    their posterior probabilities for ``Xall``. QDA predicts a megapixel in tens of milliseconds,
-    where tree ensembles take seconds on two busy cores."""
+    """Fit one full-covariance Gaussian per class (QDA) on up to ``per_class`` seed pixels of each
+    class (no class prior, so unequal counts do not bias it; enough that which pixels were drawn hardly
+    matters); return the classes and their posterior probabilities for ``Xall``. QDA predicts a
+    megapixel in tens of milliseconds, where tree ensembles take seconds on two busy cores."""
     rng = np.random.default_rng(seed)
     mu_all = X.mean(axis=0)
     sd_all = X.std(axis=0) + 1e-3
@@ -809,8 +814,29 @@ def _absorb(ids: np.ndarray, cls: int, max_m2: float, gsd_m: float, ring_classes
     return out
 
 
+def _fragmented_crowns(ids: np.ndarray, small: np.ndarray, min_px: int) -> np.ndarray:
+    """Pixels of crowns split into fragments each below the minimum region (lit canopy, its shaded side
+    and gaps read as trees, grass and rocks) that together make a region of ``min_px``, with at least
+    CROWN_TREE_SHARE of trees, standing in pavement (CROWN_PAVED_RING of the outline is asphalt or
+    sidewalk): the trees of a car park's islands, which would otherwise melt into the pavement."""
+    n, lab, stats, _c = cv2.connectedComponentsWithStats(small.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return np.zeros(ids.shape, bool)
+    area = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
+    trees = np.bincount(lab[small], weights=(ids[small] == TREES).astype(np.float64), minlength=n)
+    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int32)
+    ring = (lab_d > 0) & (lab == 0)
+    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
+    ring_p = np.bincount(lab_d[ring & ((ids == ASPHALT) | (ids == SIDEWALK))], minlength=n).astype(np.float64)
+    paved_ring = ring_p >= CROWN_PAVED_RING * np.maximum(ring_n, 1.0)
+    ok = (area >= min_px) & (trees >= CROWN_TREE_SHARE * area) & paved_ring
+    ok[0] = False
+    return ok[lab] & small
+
+
 def _merge_small(ids: np.ndarray, min_px: int, fixed: np.ndarray) -> np.ndarray:
-    """Regions smaller than ``min_px`` take the class of the nearest larger region (``fixed`` kept)."""
+    """Regions smaller than ``min_px`` take the class of the nearest larger region (``fixed`` kept),
+    except crowns in pavement that were split into such regions (``_fragmented_crowns``)."""
     if min_px <= 1:
         return ids
     small = np.zeros(ids.shape, bool)
@@ -823,8 +849,16 @@ def _merge_small(ids: np.ndarray, min_px: int, fixed: np.ndarray) -> np.ndarray:
     small &= ~fixed
     if not small.any() or small.all():
         return ids
+    crowns = _fragmented_crowns(ids, small, min_px)
+    out = ids
+    if crowns.any():
+        out = ids.copy()
+        out[crowns] = TREES
+        small = small & ~crowns
+        if not small.any():
+            return out
     _d, (ri, ci) = ndi.distance_transform_edt(small, return_indices=True)
-    return ids[ri, ci]
+    return out[ri, ci]
 
 
 def refine_water_edge(rgb: np.ndarray, ids_small: np.ndarray, water_small: np.ndarray, F: Features,
