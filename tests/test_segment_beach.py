@@ -194,3 +194,31 @@ def test_choppy_olive_water_with_sun_glitter_is_water():
     ids = segment(image, SegmentConfig(backend="classical")).ids
     assert _iou(ids == WATER, ~lawn) > 0.95
     assert (ids[lawn] == GRASS).mean() > 0.9
+
+
+@pytest.mark.parametrize("off", [False, True])
+def test_water_does_not_creep_up_a_gradual_beach(off, monkeypatch):
+    """Greenish shallows fade into dry sand over ~15 m: each growth pass finds the next strip within
+    reach of the local water colour, so without a stop the water climbs the beach (synthetic beach
+    seeds 5-6 lost a fifth of their sand). Dry sand (light, yellow) stops it."""
+    from coastforge.segmentation import classical, segment
+
+    if off:  # the premise: without the rule the sand floods
+        monkeypatch.setattr(classical, "BEACH_MIN_L", 101.0)
+    rng = np.random.default_rng(5)
+    size, gsd = 500, 0.2
+    yy, _xx = np.mgrid[0:size, 0:size]
+    lab = np.zeros((size, size, 3), np.float32)
+    t = np.clip((yy - 150) / 75.0, 0.0, 1.0)[..., None]  # water above row 150, dry sand below row 225
+    lab[:] = (1 - t) * np.array((60.0, -9.0, 8.0)) + t * np.array((72.0, -0.7, 15.5))
+    lab += rng.normal(0, 0.6, (size, size, 1))
+    lab8 = np.dstack([lab[..., 0] * 2.55, lab[..., 1] + 128, lab[..., 2] + 128])
+    rgb = cv2.cvtColor(np.clip(lab8, 0, 255).astype(np.uint8), cv2.COLOR_LAB2RGB)
+    image = GeoImage(rgb=rgb, grid=Grid(size, size, gsd))
+    ids = segment(image, SegmentConfig(backend="classical")).ids
+    dry = yy >= 240
+    if off:
+        assert (ids[dry] == WATER).mean() > 0.5
+    else:
+        assert (ids[yy < 120] == WATER).mean() > 0.95
+        assert (ids[dry] == WATER).mean() < 0.05

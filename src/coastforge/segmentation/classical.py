@@ -62,6 +62,9 @@ MURKY_GREEN_MAX_L = 65.0
 # below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
 ROUGH_T1 = 3.0
 # pale teal shallows (lighter than the water beside them) join the water whatever their contrast to it
+# water does not grow into light, yellow ground (dry sand): L* at least BEACH_MIN_L, b* above BEACH_MIN_B
+BEACH_MIN_L = 60.0
+BEACH_MIN_B = 9.0
 SHALLOW_TEX = 2.0  # ... and smoother than this many times the image's flat texture
 # an enclosed blob this large and this much rough (riprap) is a breakwater: it is not filled as water
 BREAKWATER_MIN_M2 = 300.0
@@ -341,7 +344,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     wf = water.astype(np.float32)
     # shallows over sand or mud: pale, low-chroma green-grey; only ever joined next to water of
     # nearly the same colour (the ΔE test below), which keeps lawns (more chroma) and sand (warmer) out
-    murky = (np.hypot(F.a, F.b) < 14.0) & (F.a < -2.0) & (F.L < 75.0) & (F.tex1 < 4.0)
+    murky = (np.hypot(F.a, F.b) < 14.0) & (F.a < -2.0) & (F.L < 75.0) & (s1 < 4.0)  # glitter aside
     # each pass reaches ~5 m further (the reference is only defined near water): gradual shallows
     # (pale water over sand, up to ~45 m wide) need several passes; the water-colour gate keeps the
     # growth off beaches and lawns. Growth stops once a pass adds under 0.05 % of the image.
@@ -354,6 +357,8 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     else:
         rough = np.zeros(F.L.shape, bool)
     teal = _teal(F)
+    # dry sand (light and yellow) is no water's colour: a gradual wet beach must not carry it inland
+    beach = (F.L >= BEACH_MIN_L) & (F.b > BEACH_MIN_B) & (F.a > -3.0)
     for _ in range(9):
         before = int(water.sum())
         norm = cv2.blur(wf, (k, k))
@@ -367,7 +372,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         # shallows); a lawn is neither that flat nor that close to the water colour
         # pale teal shallows along a beach or bank: lighter than the water beside them, as smooth
         pale = teal & (F.L > Lr) & (F.tex1 < SHALLOW_TEX * t1)
-        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow | pale) & ~rough
+        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow | pale) & ~rough & ~beach
         n2, lab2 = cv2.connectedComponents((close | water).astype(np.uint8), connectivity=8)
         ids2 = np.unique(lab2[water])
         water = _labels_in(lab2, ids2[ids2 > 0], n2)
