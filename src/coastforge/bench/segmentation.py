@@ -232,7 +232,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--only", choices=("marina", "synth", "speed"), action="append")
     ap.add_argument("--backend", default="classical")
     ap.add_argument("--preview", type=Path, default=None, help="write the marina colour preview here")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4])
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(9)))
     ap.add_argument("--weights", type=Path, default=None, help="model file for the learned/onnx backends")
     ap.add_argument("--presets", nargs="+", default=list(SYNTH_PRESETS))
     ap.add_argument("--cache", type=Path, default=None,
