@@ -574,3 +574,31 @@ def test_merge_small_keeps_a_fragmented_crown_in_pavement():
     lawn = np.where(ids == ASPHALT, GRASS, ids).astype(np.uint8)
     out = _merge_small(lawn, 60, fixed=np.zeros(ids.shape, bool))
     assert (out == GRASS).all()
+
+
+def test_hazy_asphalt_is_not_sidewalk():
+    """Haze lifts a whole image: its asphalt at L* ~66 is above the fixed sidewalk threshold (60), its
+    concrete paths at ~86. The paving split follows the image (synthetic marina seed 6 called its car
+    park sidewalk)."""
+    from coastforge.classes import SIDEWALK
+    from coastforge.segmentation import segment
+    from coastforge.segmentation.classical import _paving_split
+
+    rng = np.random.default_rng(0)
+    n, gsd = 300, 0.4
+    yy, xx = np.mgrid[0:n, 0:n]
+    rgb = np.empty((n, n, 3), np.float32)
+    rgb[:] = (150, 190, 110)  # hazy lawn
+    car_park = (xx >= 40) & (xx < 200) & (yy >= 40) & (yy < 200)
+    paths = ((yy >= 220) & (yy < 232)) | ((xx >= 220) & (xx < 232))
+    rgb[car_park] = (160, 163, 168)  # asphalt under haze, L* ~66
+    rgb[paths] = (214, 215, 216)  # concrete, L* ~86
+    rgb += rng.normal(0, 1.5, (n, n, 1))
+    image = GeoImage(rgb=np.clip(rgb, 0, 255).astype(np.uint8), grid=Grid(n, n, gsd))
+    ids = segment(image, SegmentConfig(backend="classical")).ids
+    assert (ids[car_park] == ASPHALT).mean() > 0.9
+    assert (ids[paths] == SIDEWALK).mean() > 0.8
+    # one kind of pavement only: the fixed thresholds stand
+    L = np.r_[rng.normal(40, 3, 5000), rng.normal(42, 3, 5000)].astype(np.float32)
+    zeros = np.zeros_like(L)
+    assert _paving_split(L, zeros, zeros, zeros, np.zeros(L.shape, bool)) == (55.0, 60.0)

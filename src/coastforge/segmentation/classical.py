@@ -109,6 +109,9 @@ ROCK_MIN_TEX = 5.0  # riprap's std of L* over ~1.2 m is above this
 # and paths and pavements are smooth at that scale (marina photo: sidewalk median 1.8, riprap 5.1)
 FINE_TEX_M = 0.6
 PATH_MAX_FINE = 4.0
+# hazy images: asphalt and concrete split by lightness above this (see _paving_split)
+PAVING_HAZE_L = 62.0
+PAVING_SPLIT_SEP = 0.7
 # fragments of a crown standing in pavement: at least this share of them trees, this share of their
 # outline asphalt or sidewalk
 CROWN_TREE_SHARE = 0.3
@@ -506,6 +509,29 @@ def greenness(F: Features, water: np.ndarray) -> np.ndarray:
     return F.exg_m - pavement_exg(F, water)
 
 
+def _paving_split(L, chroma, t1, a, water) -> tuple[float, float]:
+    """Lightness below which smooth neutral ground seeds asphalt, and above which it seeds sidewalk:
+    55 / 60, unless haze has lifted the image. Then its smooth neutral ground falls clearly into a
+    darker and a lighter group (Otsu's split explains PAVING_SPLIT_SEP of the variance, each group at
+    least a tenth) split above PAVING_HAZE_L: the thresholds move to that split."""
+    m = (chroma < 8.0) & (t1 < 4.0) & (a > -5.0) & (L > 12) & ~water
+    v = L[m]
+    if v.size < 2000:
+        return 55.0, 60.0
+    lo, hi = np.percentile(v, [1, 99])
+    v = v[(v >= lo) & (v <= hi)]
+    v8 = np.clip((v - lo) / max(hi - lo, 1e-3) * 255, 0, 255).astype(np.uint8)
+    thr, _ = cv2.threshold(v8.reshape(-1, 1), 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    t = lo + thr / 255.0 * (hi - lo)
+    dark, light = v[v < t], v[v >= t]
+    if dark.size < 0.1 * v.size or light.size < 0.1 * v.size:
+        return 55.0, 60.0
+    between = dark.size * light.size / v.size ** 2 * (light.mean() - dark.mean()) ** 2
+    if between < PAVING_SPLIT_SEP * max(float(v.var()), 1e-6) or not (PAVING_HAZE_L <= t <= 78.0):
+        return 55.0, 60.0
+    return t - 2.5, t + 2.5
+
+
 def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
                green: np.ndarray | None = None) -> np.ndarray:
     """Rule labels (int8, -1 = unsure) for pixels whose class is clear from colour and texture alone.
@@ -522,6 +548,7 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
     # its median colour over ~2 m stays sand; riprap's median is its stones' grey. Only textured
     # pixels (where the riprap rule would fire) are judged so: smooth light dirt keeps the dirt rule
     sandy = _sandy(F, a0, b0) & (t1 > ROCK_MIN_TEX)
+    l_asph, l_side = _paving_split(L, chroma, t1, a, water)
     rules = {
         # canopies are textured at the 4 m scale; in shade they are dark whatever their hue
         # ... and, lit or shaded, greener than the pavement (dark car rows and shadows are not)
@@ -530,8 +557,9 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
         GRASS: hue_green & (L > 20) & (t1 < 3.5) & (t2 < 7.0),
         # asphalt is no greener than the image's pavement (dry, pale grass can be as grey); light
         # concrete often has a tint of its own, so sidewalks are not held to this
-        ASPHALT: (chroma < 8.0) & (L > 12) & (L < 55) & (t1 < 4.0) & (a > -5.0) & (green < PAVED_MAX_GREEN),
-        SIDEWALK: (chroma < 10.0) & (L >= 60) & (t1 < 6.0) & (a > -5.0),
+        ASPHALT: ((chroma < 8.0) & (L > 12) & (L < l_asph) & (t1 < 4.0) & (a > -5.0)
+                  & (green < PAVED_MAX_GREEN)),
+        SIDEWALK: (chroma < 10.0) & (L >= l_side) & (t1 < 6.0) & (a > -5.0),
         # bare earth: warm (orange-yellow hue), some chroma, mid lightness; sand is the light version
         DIRT: (a > 1.0) & (b > 6.0) & (chroma > 7.0) & (L > 25) & (L < 60) & (t1 < 6.0),
         SAND: ((L >= 60) & (b > 9.0) & (a > -3.0) & (a < 10.0)) | (sandy & ~hue_green),
