@@ -8,17 +8,21 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
    working raster, also the std of lightness over ~0.6 m measured on the image itself (riprap's stones
    and a verge's tufts average out at ~0.4 m/px; paths and pavements stay smooth).
 2. Water first, because everything downstream depends on it: connected regions that are smooth at both
-   scales, cut at colour edges, water-coloured (blue, turquoise, green-teal, green-olive, very dark;
-   neutral grey only when very large) and large in metres and pixels. Same-coloured smaller pieces
-   join; water then grows into connected pixels of its local colour, pale shallows and cast shadows,
-   but not into rough ground (riprap, whose dark gaps match a grey sea). Gaps narrower than
+   scales once sun glitter is taken out (a grey opening), cut at colour edges, water-coloured (blue,
+   turquoise, green-teal, green-olive, very dark; neutral grey or murky olive-grey only when very
+   large and very flat) and large in metres and pixels. Same-coloured smaller pieces join; water then
+   grows into connected pixels of its local colour, pale teal shallows and cast shadows, but not into
+   rough ground (riprap, whose dark gaps match a grey sea) nor dry sand. Gaps narrower than
    ~2 x ``water_close_m`` are closed, enclosed non-vegetated blobs up to ``water_hole_max_m2`` (boats,
-   pier clusters: objects whose terrain is water) are filled, as are fragmented narrow structures still
-   tied to the shore (``pier_open_m``). At full resolution the open waterline is re-decided per pixel
+   pier clusters: objects whose terrain is water) are filled unless they are rubble (a breakwater), as
+   are fragmented narrow structures still tied to the shore (``pier_open_m``). At full resolution the open waterline is re-decided per pixel
    by comparing its colour with the local water and local land-class colours.
 3. Land: colour/texture rules (after removing the image's colour cast) label the pixels they are sure
    of; a per-image Gaussian classifier (QDA) trained on those pixels (self-training) labels the rest,
-   so thresholds only need to be right for the clear cases of each image. Footpaths and quay
+   so thresholds only need to be right for the clear cases of each image (the asphalt / concrete
+   lightness split follows the image when haze lifts it). Rows of parked cars are a class of their
+   own while it learns; it then hands their probability to pavement where the pixel would otherwise be
+   rocks, sand or dirt, and drops it elsewhere. Footpaths and quay
    walkways (smooth neutral strips under ~5 m wide, no darker than the asphalt, with unpaved ground
    around them) seed as sidewalk even when no lighter than a car park. Vegetation is measured
    against the image's own pavement (``greenness``: excess green of the mean colour over ~3 m minus
@@ -30,7 +34,7 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
    asphalt (parked cars are transient); pixels within ``edge_refine_m`` of a class border are
    re-decided by their own colour against the local class colours (the classifier's 4-8 m windows
    spread classes past their borders); regions smaller than ``min_region_m2`` merge into their
-   surroundings.
+   surroundings, except a crown in pavement split into such fragments, which stays trees.
 """
 
 from __future__ import annotations
