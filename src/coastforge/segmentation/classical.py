@@ -15,16 +15,17 @@ Pipeline (at a reduced working resolution, ~0.4 m/px by default, then upsampled)
    rough ground (riprap, whose dark gaps match a grey sea) nor dry sand. Gaps narrower than
    ~2 x ``water_close_m`` are closed, enclosed non-vegetated blobs up to ``water_hole_max_m2`` (boats,
    pier clusters: objects whose terrain is water) are filled unless they are rubble (a breakwater), as
-   are fragmented narrow structures still tied to the shore (``pier_open_m``). At full resolution the open waterline is re-decided per pixel
+   are fragmented narrow structures still tied to the shore (``pier_open_m``). At full resolution the
+   open waterline is re-decided per pixel
    by comparing its colour with the local water and local land-class colours.
 3. Land: colour/texture rules (after removing the image's colour cast) label the pixels they are sure
    of; a per-image Gaussian classifier (QDA) trained on those pixels (self-training) labels the rest,
    so thresholds only need to be right for the clear cases of each image (the asphalt / concrete
    lightness split follows the image when haze lifts it). Rows of parked cars are a class of their
    own while it learns; it then hands their probability to pavement where the pixel would otherwise be
-   rocks, sand or dirt, and drops it elsewhere. Footpaths and quay
-   walkways (smooth neutral strips under ~5 m wide, no darker than the asphalt, with unpaved ground
-   around them) seed as sidewalk even when no lighter than a car park. Vegetation is measured
+   rocks, sand or dirt, and drops it elsewhere. Footpaths and quay walkways (smooth neutral strips
+   under ~5 m wide, no darker than the asphalt, with unpaved ground around them) seed as sidewalk
+   even when no lighter than a car park. Vegetation is measured
    against the image's own pavement (``greenness``: excess green of the mean colour over ~3 m minus
    the pavement's): canopies are greener, rows of dark parked cars and shadows on pavement are not;
    asphalt is not greener; unsure rough grey ground on the bank is a revetment.
@@ -66,10 +67,10 @@ MURKY_GREEN_MAX_L = 65.0
 # below ROUGH_BRIGHT and gradient coherence below ROUGH_COH (riprap; a wall's shadow edge is coherent)
 ROUGH_T1 = 3.0
 # pale teal shallows (lighter than the water beside them) join the water whatever their contrast to it
+SHALLOW_TEX = 2.0  # ... when smoother than this many times the image's flat texture
 # water does not grow into light, yellow ground (dry sand): L* at least BEACH_MIN_L, b* above BEACH_MIN_B
 BEACH_MIN_L = 60.0
 BEACH_MIN_B = 9.0
-SHALLOW_TEX = 2.0  # ... and smoother than this many times the image's flat texture
 # an enclosed blob this large and this much rough (riprap) is a breakwater: it is not filled as water
 BREAKWATER_MIN_M2 = 300.0
 BREAKWATER_ROUGH = 0.25
@@ -163,6 +164,17 @@ class Features:
         if self.fine is not None:
             cols.append(lg(self.fine))
         return np.stack([c.ravel() for c in cols], axis=1).astype(np.float32)
+
+
+def _outline_share(lab: np.ndarray, n: int, hit: np.ndarray, radius_px: int = 1) -> np.ndarray:
+    """Per label of ``lab`` (``n`` labels, 0 = background), the share of its outline (background pixels
+    within ``radius_px``, square neighbourhood) where ``hit`` holds."""
+    k = 2 * radius_px + 1
+    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((k, k), np.uint8)).astype(np.int32)
+    ring = (lab_d > 0) & (lab == 0)
+    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
+    ring_h = np.bincount(lab_d[ring & hit], minlength=n).astype(np.float64)
+    return ring_h / np.maximum(ring_n, 1.0)
 
 
 def _labels_in(lab: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
@@ -277,8 +289,7 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
     gb = np.hypot(cv2.Sobel(F.b, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(F.b, cv2.CV_32F, 0, 1, ksize=3))
     cedge = (ga + gb) * 0.125 > 5.0
     # murky olive-grey (turbid lakes and rivers): confirmed below only as a very large, very flat region
-    murky = _murky(F.L, F.a, F.b)
-    cand = (smooth & (colour | murky) & ~cedge).astype(np.uint8)
+    cand = (smooth & (colour | _murky(F.L, F.a, F.b)) & ~cedge).astype(np.uint8)
     n, lab, stats, _c = cv2.connectedComponentsWithStats(cand, connectivity=4)
     if n <= 1:
         return (np.zeros((h, w), bool),) * 2 if return_open else np.zeros((h, w), bool)
@@ -379,7 +390,8 @@ def detect_water(F: Features, cfg: SegmentConfig, return_open: bool = False):
         # shallows); a lawn is neither that flat nor that close to the water colour
         # pale teal shallows along a beach or bank: lighter than the water beside them, as smooth
         pale = teal & (F.L > Lr) & (F.tex1 < SHALLOW_TEX * t1)
-        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow | pale) & ~rough & ~beach
+        close = ok & (((de2 < 36.0) & (colour | murky | (F.tex1 < 1.5 * t1))) | shadow | pale)
+        close &= ~rough & ~beach
         n2, lab2 = cv2.connectedComponents((close | water).astype(np.uint8), connectivity=8)
         ids2 = np.unique(lab2[water])
         water = _labels_in(lab2, ids2[ids2 > 0], n2)
@@ -633,14 +645,10 @@ def footpaths(F: Features, water: np.ndarray, seeds: np.ndarray, chroma: np.ndar
         return np.zeros(F.L.shape, bool)
     # the outline is looked at PATH_RING_M out: a kerb between light and dark paving is textured, so
     # neither side's rule claims the pixels right at it
-    rr = max(1, int(round(PATH_RING_M / gsd)))
-    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((2 * rr + 1, 2 * rr + 1), np.uint8)).astype(np.int32)
-    ring = (lab_d > 0) & (lab == 0)
-    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
-    ring_p = np.bincount(lab_d[ring & (pavement > 0)], minlength=n).astype(np.float64)
+    paved_share = _outline_share(lab, n, pavement > 0, max(1, int(round(PATH_RING_M / gsd))))
     area_m2 = st[:, cv2.CC_STAT_AREA] * gsd * gsd
     long_side = np.maximum(st[:, cv2.CC_STAT_WIDTH], st[:, cv2.CC_STAT_HEIGHT]) * gsd
-    ok = (area_m2 >= PATH_MIN_M2) & (long_side >= PATH_MIN_LEN_M) & (ring_p / np.maximum(ring_n, 1.0) <= 0.25)
+    ok = (area_m2 >= PATH_MIN_M2) & (long_side >= PATH_MIN_LEN_M) & (paved_share <= 0.25)
     ok[0] = False
     return ok[lab]
 
@@ -839,12 +847,7 @@ def _absorb(ids: np.ndarray, cls: int, max_m2: float, gsd_m: float, ring_classes
     if n <= 1:
         return ids
     area = stats[:, cv2.CC_STAT_AREA] * gsd_m * gsd_m
-    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int32)
-    ring = (lab_d > 0) & (lab == 0)
-    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
-    ring_a = np.bincount(lab_d[ring & np.isin(ids, ring_classes)], minlength=n).astype(np.float64)
-    share = ring_a / np.maximum(ring_n, 1.0)
-    absorb = (area <= max_m2) & (share >= 0.6)
+    absorb = (area <= max_m2) & (_outline_share(lab, n, np.isin(ids, ring_classes)) >= 0.6)
     absorb[0] = False
     out = ids.copy()
     out[absorb[lab]] = ASPHALT
@@ -861,12 +864,8 @@ def _fragmented_crowns(ids: np.ndarray, small: np.ndarray, min_px: int) -> np.nd
         return np.zeros(ids.shape, bool)
     area = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
     trees = np.bincount(lab[small], weights=(ids[small] == TREES).astype(np.float64), minlength=n)
-    lab_d = cv2.dilate(lab.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int32)
-    ring = (lab_d > 0) & (lab == 0)
-    ring_n = np.bincount(lab_d[ring], minlength=n).astype(np.float64)
-    ring_p = np.bincount(lab_d[ring & ((ids == ASPHALT) | (ids == SIDEWALK))], minlength=n).astype(np.float64)
-    paved_ring = ring_p >= CROWN_PAVED_RING * np.maximum(ring_n, 1.0)
-    ok = (area >= min_px) & (trees >= CROWN_TREE_SHARE * area) & paved_ring
+    paved = _outline_share(lab, n, (ids == ASPHALT) | (ids == SIDEWALK))
+    ok = (area >= min_px) & (trees >= CROWN_TREE_SHARE * area) & (paved >= CROWN_PAVED_RING)
     ok[0] = False
     return ok[lab] & small
 
