@@ -1,6 +1,9 @@
-"""Default embedder (v4): Lab integrated contrast on dark water; foam at the crop's edge is not the object."""
+"""Default embedder: Lab integrated contrast on dark water and its direction; foam at the crop's edge is not
+the object; the edge extent measures a hull the colour mask misses."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -89,3 +92,83 @@ def test_library_benchmark_reports_category_confusion_by_pixels():
     assert r["category_by_pixels"]["grass"] == {"<3 px": "0/1", "8-16 px": "1/1"}
     assert r["by_object_pixels"][">=32 px"] == {"n": 1, "asset": 1.0, "category": 1.0}
     assert [pixel_band(x) for x in (2.9, 3.0, 7.99, 32.0)] == ["<3 px", "3-5 px", "5-8 px", ">=32 px"]
+
+
+def test_contrast_direction_is_the_colour_whatever_the_coverage():
+    """A tuft covering its pixels fully and one covering them by half (its colour mixed with the water's)
+    differ in integrated contrast by about 2x, but not in its direction; a dark olive tuft differs in both."""
+    from coastforge.assets.embed import DefaultEmbedder
+
+    def code(colour, cover):
+        img = _water(colour=(20, 70, 110), seed=3)
+        c = img.shape[0] // 2
+        patch = img[c - 2:c + 2, c - 2:c + 2]
+        img[c - 2:c + 2, c - 2:c + 2] = cover * np.asarray(colour, np.float32) + (1 - cover) * patch
+        rgb = np.clip(img, 0, 255).astype(np.uint8)
+        return integrated_contrast(rgb, object_mask(rgb), 0.1)
+
+    full, half, olive = code((70, 150, 60), 1.0), code((70, 150, 60), 0.5), code((25, 35, 20), 1.0)
+    assert 1.5 < np.linalg.norm(full) / np.linalg.norm(half) < 2.5
+    d = DefaultEmbedder._contrast_dir
+    cos = lambda a, b: float(a @ b / np.linalg.norm(a) / np.linalg.norm(b))  # noqa: E731
+    assert cos(d(full), d(half)) > 0.9
+    assert cos(d(full), d(olive)) < 0.5
+    # the magnitude's code differs
+    assert cos(DefaultEmbedder._contrast(full), DefaultEmbedder._contrast(half)) < 0.9
+    assert not d(np.zeros(3)).any()
+
+
+def _ground(n, seed):
+    """Light concrete with the renderer's kind of grain: blotches and per-pixel noise of a few levels."""
+    import cv2
+
+    rng = stage_rng(seed, "test-edge-extent")
+    blotch = cv2.GaussianBlur(rng.normal(0.0, 1.0, (n, n)).astype(np.float32), (0, 0), n / 12)
+    blotch *= 4.0 / max(float(blotch.std()), 1e-6)
+    img = np.empty((n, n, 3), np.float32)
+    img[:] = (188, 184, 172)
+    img += blotch[:, :, None] + rng.normal(0.0, 2.5, (n, n, 1))
+    return img
+
+
+@pytest.mark.parametrize("gsd", [0.05, 0.1])
+def test_edge_extent_measures_a_white_hull_on_light_ground(gsd):
+    """A white 12 x 6 m hull on light concrete is so faint that the colour mask finds about half of it, but
+    its outline holds the gradient energy above the ground's grain: the radius holding 85 % of it is about the
+    hull's half-diagonal in metres, at any GSD, and a 5 m hull gives a clearly smaller one. (Without the
+    grain's share taken off, the radius grows by a quarter.)"""
+    from coastforge.assets.embed import EDGE_BINS, DefaultEmbedder, _centres, rgb_to_lab
+
+    def r85(length_m, width_m):
+        n = int(round(1.5 * length_m / gsd)) + 4
+        img = _ground(n, seed=int(length_m))
+        c, hl, hw = (n - 1) / 2.0, length_m / gsd / 2.0, width_m / gsd / 2.0
+        rows = slice(int(round(c - hw)), int(round(c + hw)))
+        cols = slice(int(round(c - hl)), int(round(c + hl)))
+        img[rows, cols] += 14.0  # a white hull, 14 levels lighter
+        lab = rgb_to_lab(np.clip(img, 0, 255).astype(np.uint8))
+        code = DefaultEmbedder._edge_extent(lab, gsd)[EDGE_BINS:]
+        return float(np.exp(_centres(math.log(0.05), math.log(200.0), EDGE_BINS)[int(np.argmax(code))]))
+
+    big, small = r85(12.0, 6.0), r85(5.0, 2.0)
+    assert 0.85 * math.hypot(6.0, 3.0) < big < 1.15 * math.hypot(6.0, 3.0)
+    assert big > 1.8 * small
+    flat = rgb_to_lab(np.full((20, 20, 3), 128, np.uint8))
+    assert not DefaultEmbedder._edge_extent(flat, gsd).any()  # nothing there
+
+
+def test_a_mask_lost_at_the_work_size_falls_back_to_the_centre():
+    """A 2 px speck in an 88 px crop is found at the 72 px work size but lost when its mask is scaled back up:
+    the blocks then use the central disc, not an empty mask (the radial spectrum took the mean of nothing)."""
+    import warnings
+
+    from coastforge.assets.embed import DefaultEmbedder
+
+    img = np.full((88, 88, 3), 110.0) + stage_rng(0, "test-lost-mask").normal(0.0, 2.0, (88, 88, 3))
+    img[45:47, 46:48] += 36.0
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    assert not object_mask(img).any()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        v = DefaultEmbedder().embed([img], [0.1])
+    assert np.isfinite(v).all() and abs(float(np.linalg.norm(v)) - 1.0) < 1e-5

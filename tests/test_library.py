@@ -177,9 +177,11 @@ def test_build_full_views_query_and_library_json(two_assets, tmp_path):
     rec = {r["id"]: r for r in doc["assets"]}
     assert len(rec["blue_car"]["paint_views"]) == 7 and len(rec["red_boat"]["paint_views"]) == 7
     # query-like views: the 4.5 m car (views at 0.2 m/px) is under 40 px long at 0.28 and 0.4 m/px; those
-    # stand in for the 2x downsampled copies (0.4 m/px), which are left out
+    # stand in for the 2x downsampled copies (0.4 m/px), which are left out. Per GSD: the 3 lightings x 2
+    # backgrounds, and 2 random lightings per background
     qv = rec["blue_car"]["query_views"]
-    assert sorted({q["gsd_m"] for q in qv}) == [0.28, 0.4] and len(qv) == 2 * 6
+    assert sorted({q["gsd_m"] for q in qv}) == [0.28, 0.4] and len(qv) == 2 * (6 + 4)
+    assert sum(q["lighting"] == "random" for q in qv) == 2 * 4
     assert (tmp_path / "lib" / rec["blue_car"]["query_views_file"]).is_file()
     assert rec["blue_car"]["index_rows"][1] == (6 + 7) + len(qv)
     from coastforge.assets.library import repaint
@@ -374,7 +376,8 @@ def test_query_views_of_small_assets(tmp_path, monkeypatch):
     man = _manifest(src, [{"id": "buoy", "category": "buoy", "mesh": "buoy.glb"},
                           {"id": "red_boat", "category": "boat", "mesh": "boat.glb", "length_m": 6.0}])
     cfg = LibraryConfig(lightings=1, backgrounds=("water",), embed_scales=(1.0, 2.0), view_size_px=64,
-                        paint_variants=False, query_view_gsds_m=(0.1, 0.2, 0.4), query_view_max_px=20)
+                        paint_variants=False, query_view_gsds_m=(0.1, 0.2, 0.4), query_view_max_px=20,
+                        query_view_random_lightings=0)
     out = tmp_path / "lib"
     lib = build_library(man, out, config=cfg, workers=1)
     doc = {a["id"]: a for a in json.loads((out / "library.json").read_text())["assets"]}
@@ -408,6 +411,27 @@ def test_query_views_of_small_assets(tmp_path, monkeypatch):
     # bad configuration names the field
     with pytest.raises(LibraryError, match="query_view_gsds_m"):
         query_view_plan((1.0, 1.0, 1.0), 0.05, LibraryConfig(query_view_gsds_m=(0.1, -0.2)))
+
+
+def test_query_views_under_random_lightings():
+    """Each GSD also gets randomly lit query-like views (water colour, sun, haze) per background, the same on
+    every build; a negative count is refused by name."""
+    from coastforge.assets.library import render_query_views
+
+    mesh = _buoy_mesh()
+    cfg = LibraryConfig(lightings=1, query_view_gsds_m=(0.2,), query_view_random_lightings=3)
+    views = render_query_views(mesh, "buoy", (0.6, 0.6, 1.0), 0.05, cfg)
+    meta = [m for _, m in views]
+    assert [(m["lighting"], m["background"]) for m in meta] == \
+        [(0, "water"), (0, "ground")] + [("random", "water")] * 3 + [("random", "ground")] * 3
+    water = [img for img, m in views if m["background"] == "water"]
+    # the random lightings change the water's colour: the views' backgrounds differ
+    rings = [np.concatenate([i[0], i[-1]]).reshape(-1, 3).mean(0) for i in water]
+    assert max(np.abs(r - rings[0]).max() for r in rings[1:]) > 10
+    again = render_query_views(mesh, "buoy", (0.6, 0.6, 1.0), 0.05, cfg)
+    assert all(np.array_equal(a[0], b[0]) and a[1] == b[1] for a, b in zip(views, again))
+    with pytest.raises(LibraryError, match="query_view_random_lightings"):
+        render_query_views(mesh, "buoy", (0.6, 0.6, 1.0), 0.05, LibraryConfig(query_view_random_lightings=-1))
 
 
 # --------------------------------------------------------------------------- folders, thumbnails, CLI, kit

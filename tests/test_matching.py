@@ -167,3 +167,30 @@ def test_library_views_on(car_library):
     assert len(car_library.views_on("sedan", "water")) == 1  # none on water: falls back to what there is
     with pytest.raises(LibraryError, match="not in library"):
         car_library.views_on("tractor", "ground")
+
+
+def test_matcher_leaves_the_edge_extent_out_of_its_crops(car_library):
+    """The edge extent measures whatever has edges in a crop: a car parked between two others looks as wide
+    as the row. The matcher's vectors drop that block (zero, then unit again); other embedders are untouched."""
+    from coastforge.matching import _without_edge_extent, detection_crop
+
+    emb = car_library.embedder
+    sl = emb.block_slices["edge_extent"]
+    gsd, size = 0.1, 120
+    lone = _scene("sedan", BODY, 0.0, 1.0, gsd, size)
+    row = lone.rgb.copy()
+    for dy in (-25, 25):  # neighbours 2.5 m to either side, as in a parking row
+        row = np.minimum(row, np.roll(lone.rgb, dy, axis=0))
+    crops = [detection_crop(img, _det(img, 4.6, 1.9, 0.0))[0] for img in (lone, GeoImage(row, lone.grid))]
+    v = emb.embed(crops, [gsd, gsd])
+    # the row's edges reach farther out than the lone car's: the block differs ...
+    assert float(v[0, sl] @ v[1, sl]) / max(float(np.linalg.norm(v[0, sl]) * np.linalg.norm(v[1, sl])), 1e-9) < 0.8
+    w = _without_edge_extent(car_library, v)
+    assert not w[:, sl].any() and np.allclose(np.linalg.norm(w, axis=1), 1.0, atol=1e-5)
+    # ... and without it the two crops are closer than with it
+    assert float(w[0] @ w[1]) > float(v[0] @ v[1])
+
+    class Other:  # an embedder without blocks (dinov3): vectors pass unchanged
+        embedder = object()
+
+    assert _without_edge_extent(Other(), v) is v

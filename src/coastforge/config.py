@@ -162,6 +162,9 @@ class LibraryConfig:
     # small objects in aerial images are a few pixels, which the downsampled standard views do not mimic
     query_view_gsds_m: tuple[float, ...] = (0.05, 0.07, 0.1, 0.14, 0.2, 0.28, 0.4)
     query_view_max_px: float = 40.0
+    # per GSD and background, this many more query-like views under random lightings (water colour, sun,
+    # haze): a few-pixel object shows little more than its contrast with the background
+    query_view_random_lightings: int = 2
 
 
 @dataclass(frozen=True)

@@ -329,6 +329,7 @@ def view_settings(config: LibraryConfig) -> dict:
         "paint_variants": bool(config.paint_variants), "paints": [list(p) for p in PAINTS],
         "silhouette": 1,  # footprint masks stored beside the views
         "query_views": {"version": 2, "gsds_m": [float(g) for g in config.query_view_gsds_m],
+                        "random_lightings": int(config.query_view_random_lightings),
                         "max_px": float(config.query_view_max_px), "pad": QUERY_PAD, "min_px": QUERY_MIN_PX},
     }
 
@@ -393,9 +394,12 @@ def query_view_plan(dims_m: Sequence[float], view_gsd: float, config: LibraryCon
 
 def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: float, config: LibraryConfig):
     """Query-like views (see ``LibraryConfig.query_view_gsds_m``): list of (image, meta dict)."""
-    from ..render import render_mesh_view
+    from ..render import random_lighting, render_mesh_view
     from ..rng import stage_rng
 
+    n_random = int(config.query_view_random_lightings)
+    if n_random < 0:
+        raise LibraryError(f"library.query_view_random_lightings = {n_random} must be 0 or more")
     lightings = view_lightings()
     rng = stage_rng(0, "library-query-views", asset_id)
     out = []
@@ -404,6 +408,15 @@ def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: f
             yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
             img = render_mesh_view(mesh, g, side, lightings[k], bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
             out.append((img, {"lighting": k, "background": bg, "gsd_m": g, "yaw_deg": yaw}))
+        # a few-pixel object shows little more than its contrast with the background, which the water's
+        # colour, the sun and haze change: these views sample that variety (random lightings of the library's
+        # own stream)
+        for bg in config.backgrounds:
+            for _ in range(n_random):
+                light = random_lighting(rng)
+                yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
+                img = render_mesh_view(mesh, g, side, light, bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
+                out.append((img, {"lighting": "random", "background": bg, "gsd_m": g, "yaw_deg": yaw}))
     return out
 
 

@@ -6,7 +6,8 @@
 
 Retrieval queries are renders of library assets at a random yaw, a random lighting (sun, water colour,
 haze), a random background (water or ground) and a random GSD in 0.05-0.3 m, cropped like the matcher
-crops detections (1.5 x the object's size); results are also split by the object's length in pixels, and a
+crops detections (1.5 x the object's size), 12 per asset and seed over seeds 0-9 (one seed's figure moves by
+about a percent from seed to seed); results are also split by the object's length in pixels, and a
 category confusion matrix (query category x top-1 category) is reported. Crops of the labelled ships and
 vehicles of the real photos in ../shared/data are scored by category only (no asset is known for a real
 object). When ``coastforge.synth`` is available: crops of the objects of synthetic benchmark scenes (embedding
@@ -312,7 +313,11 @@ def main(argv=None) -> None:
     ap.add_argument("--library", help="An existing library folder (default: build from --models or the kit).")
     ap.add_argument("--models", help="A manifest to build the benchmark library from (e.g. Quaternius).")
     ap.add_argument("--per-asset", type=int, default=12, help="Rendered queries per asset.")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(10)),
+                    help="Seeds of the rendered queries (default 0-9: one seed's figure moves by about a "
+                         "percent from seed to seed).")
+    ap.add_argument("--synth-seeds", type=int, nargs="+", default=[0, 1, 2],
+                    help="Seeds of the synthetic levels whose objects are cropped and matched (default 0-2).")
     ap.add_argument("--build-assets", type=int, default=159)
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--skip-build", action="store_true", help="Skip the build-time benchmark.")
@@ -338,23 +343,32 @@ def main(argv=None) -> None:
                          "load_or_build_s": round(time.perf_counter() - t0, 2),
                          "category_vote_t": getattr(lib, "CATEGORY_VOTE_T", None)}
     try:
-        queries = render_queries(lib, args.per_asset, args.seed)
+        per_seed = {s: render_queries(lib, args.per_asset, s) for s in args.seeds}
+        queries = [q for qs in per_seed.values() for q in qs]
         report["rendered_queries"] = retrieval(lib, queries)
+        report["rendered_queries"]["seeds"] = list(args.seeds)
+        report["rendered_queries"]["per_seed"] = {
+            str(s): {k: retrieval(lib, qs)[k] for k in ("queries", "top1_asset", "top1_category")}
+            for s, qs in per_seed.items()} if len(per_seed) > 1 else {}
         report["rendered_queries"]["ms_single_query"] = single_query_ms(lib, queries)
         if not args.skip_synth:
-            try:
-                levels, why = synth_levels(args.seed)
-            except Exception as exc:  # another stage's code: report, do not lose the other figures
-                levels, why = [], f"synthetic levels failed: {type(exc).__name__}: {exc}"
+            levels, why = [], ""
+            for s in args.synth_seeds:
+                try:
+                    more, why = synth_levels(s)
+                except Exception as exc:  # another stage's code: report, do not lose the other figures
+                    more, why = [], f"synthetic levels failed: {type(exc).__name__}: {exc}"
+                levels += more
             sq = synth_queries(lib, levels) if levels else []
             report["synthetic_crops"] = retrieval(lib, sq) if sq else {"queries": 0, "why": why}
             if levels:
                 report["synthetic_matcher_truth_boxes"] = synth_matching(lib, levels)
+                report["synthetic_matcher_truth_boxes"]["seeds"] = list(args.synth_seeds)
         rq, why = real_queries(Path(args.data))
         report["real_crops"] = real_category(lib, rq) if rq else {"queries": 0, "skipped": why}
         if not args.skip_build:
             report["build"] = build_benchmark(Path(args.models) if args.models else None, args.build_assets,
-                                              args.workers, args.seed)
+                                              args.workers, args.seeds[0])
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
