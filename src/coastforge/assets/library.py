@@ -1016,15 +1016,26 @@ def _prune(out: Path, keep: set[str]) -> None:
                 f.unlink(missing_ok=True)
 
 
+def _os_threads() -> int:
+    """Threads of this process as the OS sees them, native pools included (Linux); else Python's count."""
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        import threading
+
+        return threading.active_count()
+
+
 def _start_method() -> str:
-    """``fork`` only when this process has a single thread; else ``spawn``.
+    """``fork`` only when this process has a single thread, native ones included; else ``spawn``.
 
-    Forking while another thread holds a lock (generate builds the starter kit in a background thread while
-    the main thread imports scipy) leaves the child waiting forever on that lock; spawned workers start clean.
+    Forking while another thread holds a lock leaves the child waiting forever on that lock; spawned workers
+    start clean. Python's own threads are not the only ones: generate builds the starter kit in a background
+    thread while the main thread imports scipy, and after a first ray cast embree's TBB pool has threads of
+    its own (a test that rendered views in-process, then built the kit with a forked pool, hung in the
+    child's first ray cast).
     """
-    import threading
-
-    return "fork" if threading.active_count() == 1 else "spawn"
+    return "fork" if _os_threads() == 1 else "spawn"
 
 
 def _run_jobs(jobs: list[tuple], workers: int | None, say) -> list[dict]:
