@@ -229,21 +229,21 @@ def test_parallel_build_matches_serial(two_assets, tmp_path):
     np.testing.assert_allclose(a.index.vectors(), b.index.vectors(), atol=1e-5)
 
 
-def test_native_threads_prevent_fork():
-    """A process whose only extra threads are native ones (embree's TBB pool after a ray cast, BLAS) must not
-    fork its build workers either: a child forked while such a thread held a lock hung in its first ray cast.
-    Checked in a fresh interpreter, which starts with a single thread."""
+def test_no_fork_after_a_ray_cast():
+    """After a render (embree ray casts), embree's TBB pool has native threads: build workers must not be forked
+    then (a child forked while one held a lock hung in its first ray cast). Before one, a plain script still
+    forks (so it needs no ``if __name__ == "__main__"`` guard). Checked in fresh interpreters."""
     import subprocess
     import sys
 
-    code = ("import os, threading; from coastforge.assets.library import _os_threads, _start_method; "
-            "import trimesh; "
-            "m = trimesh.creation.box(); "
-            "m.ray.intersects_first([[0, 0, 5]] * 64, [[0, 0, -1]] * 64); "
-            "print(threading.active_count(), _os_threads() > 1, _start_method())")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["1", "True", "spawn"]
+    head = ("import threading, trimesh; from coastforge.assets.library import _start_method; "
+            "from coastforge.render import render_mesh_view, standard_view_lightings; ")
+    render = "render_mesh_view(trimesh.creation.box(), 0.1, 32, standard_view_lightings()[0], 'water'); "
+    for body, want in (("", "fork"), (render, "spawn")):
+        out = subprocess.run([sys.executable, "-c", head + body + "print(threading.active_count(), _start_method())"],
+                             capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr
+        assert out.stdout.split() == ["1", want]
 
 
 def test_parallel_build_from_a_background_thread_does_not_fork(two_assets, tmp_path):

@@ -55,9 +55,17 @@ def ray_backend() -> str:
     return _BACKEND
 
 
+# set at the first embree intersector: from then on embree's TBB pool has native threads, and a forked child
+# can hang on a lock one of them held (the library build then spawns its workers instead)
+EMBREE_USED = False
+
+
 def _intersector(mesh: trimesh.Trimesh):
+    global EMBREE_USED
     if ray_backend() == "embree":
         from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+        EMBREE_USED = True
     else:  # pragma: no cover
         from trimesh.ray.ray_triangle import RayMeshIntersector
     return RayMeshIntersector(mesh)

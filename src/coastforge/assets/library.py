@@ -1016,26 +1016,19 @@ def _prune(out: Path, keep: set[str]) -> None:
                 f.unlink(missing_ok=True)
 
 
-def _os_threads() -> int:
-    """Threads of this process as the OS sees them, native pools included (Linux); else Python's count."""
-    try:
-        return len(os.listdir("/proc/self/task"))
-    except OSError:
-        import threading
-
-        return threading.active_count()
-
-
 def _start_method() -> str:
-    """``fork`` only when this process has a single thread, native ones included; else ``spawn``.
+    """``fork`` when it is safe, else ``spawn`` (which needs the caller's script to guard its entry point).
 
     Forking while another thread holds a lock leaves the child waiting forever on that lock; spawned workers
-    start clean. Python's own threads are not the only ones: generate builds the starter kit in a background
-    thread while the main thread imports scipy, and after a first ray cast embree's TBB pool has threads of
-    its own (a test that rendered views in-process, then built the kit with a forked pool, hung in the
-    child's first ray cast).
+    start clean. Two such cases: generate builds the starter kit in a background thread while the main thread
+    imports scipy, and after our first embree ray cast its TBB pool has native threads of its own (a test that
+    rendered views in-process, then built the kit with a forked pool, hung in the child's first ray cast).
+    BLAS and OpenCV pools, which every numpy / cv2 process has, fork safely.
     """
-    return "fork" if _os_threads() == 1 else "spawn"
+    import threading
+
+    ro = sys.modules.get("coastforge.render_objects")
+    return "fork" if threading.active_count() == 1 and not getattr(ro, "EMBREE_USED", False) else "spawn"
 
 
 def _run_jobs(jobs: list[tuple], workers: int | None, say) -> list[dict]:
