@@ -230,9 +230,9 @@ def test_parallel_build_matches_serial(two_assets, tmp_path):
 
 
 def test_no_fork_after_a_ray_cast():
-    """After a render (embree ray casts), embree's TBB pool has native threads: build workers must not be forked
-    then (a child forked while one held a lock hung in its first ray cast). Before one, a plain script still
-    forks (so it needs no ``if __name__ == "__main__"`` guard). Checked in fresh interpreters."""
+    """After a render (embree ray casts), embree's TBB pool has native threads: build workers must not be
+    forked then (a child forked while one held a lock hung in its first ray cast). Before one, a plain script
+    still forks (so it needs no ``if __name__ == "__main__"`` guard). Checked in fresh interpreters."""
     import subprocess
     import sys
 
@@ -240,8 +240,8 @@ def test_no_fork_after_a_ray_cast():
             "from coastforge.render import render_mesh_view, standard_view_lightings; ")
     render = "render_mesh_view(trimesh.creation.box(), 0.1, 32, standard_view_lightings()[0], 'water'); "
     for body, want in (("", "fork"), (render, "spawn")):
-        out = subprocess.run([sys.executable, "-c", head + body + "print(threading.active_count(), _start_method())"],
-                             capture_output=True, text=True, timeout=120)
+        code = head + body + "print(threading.active_count(), _start_method())"
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
         assert out.returncode == 0, out.stderr
         assert out.stdout.split() == ["1", want]
 
