@@ -33,6 +33,7 @@ from ..rng import stage_rng
 from .segmentation import SHARED as SHARED_DATA  # ../shared/data beside the project
 
 MATCHED = ("boat", "vehicle", "buoy")  # the categories the matcher assigns assets to
+MAX_QUERY_PX = 1024  # rendered queries are at most this many pixels across (the kit's largest: 544)
 
 
 def render_queries(lib, per_asset: int, seed: int, gsd_range=(0.05, 0.3)):
@@ -51,6 +52,9 @@ def render_queries(lib, per_asset: int, seed: int, gsd_range=(0.05, 0.3)):
             bg = str(rng.choice(["water", "ground"]))
             light = random_lighting(rng)
             side = max(a.dims_m[0], a.dims_m[1]) * 1.5
+            # a huge object at a fine GSD (a 250 m cruise ship at 0.05 m/px: 7,500 px, 14 GB to render) is
+            # seen coarser, as the matcher resamples a detection's crop (to 256 px) and the embedder (to 128)
+            gsd = max(gsd, side / (MAX_QUERY_PX - 4))
             size = int(max(12, math.ceil(side / gsd) + 4))
             img = render_mesh_view(mesh, gsd, size, light, bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
             out.append((img, gsd, a.id, a.category))
