@@ -95,6 +95,16 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=256)
+def _crop_ring(h: int, w: int) -> np.ndarray:
+    """The crop's outer ring (a twentieth of its side, at least 1 px), taken to show the background."""
+    ring = max(1, min(h, w) // 20)
+    edge = np.zeros((h, w), bool)
+    edge[:ring], edge[-ring:], edge[:, :ring], edge[:, -ring:] = True, True, True, True
+    edge.flags.writeable = False  # shared between calls
+    return edge
+
+
+@functools.lru_cache(maxsize=256)
 def _radius_bins(h: int, w: int) -> np.ndarray:
     """Each pixel's distance from the centre of an h x w crop, in half pixels (rounded)."""
     yy, xx = np.mgrid[0:h, 0:w]
@@ -192,9 +202,7 @@ def _object_mask(rgb: np.ndarray) -> np.ndarray:
 
     lab = rgb_to_lab(rgb)
     h, w = lab.shape[:2]
-    ring = max(1, min(h, w) // 20)
-    edge = np.zeros((h, w), bool)
-    edge[:ring], edge[-ring:], edge[:, :ring], edge[:, -ring:] = True, True, True, True
+    edge = _crop_ring(h, w)
     border = lab[edge]
     centres = _background_centres(border)
     flat = lab.reshape(-1, 3)
@@ -361,17 +369,17 @@ def _fallback_mask(h: int, w: int) -> np.ndarray:
     return ((yy - (h - 1) / 2) / (h / 4)) ** 2 + ((xx - (w - 1) / 2) / (w / 4)) ** 2 <= 1.0
 
 
-def integrated_contrast(rgb: np.ndarray, mask: np.ndarray, gsd: float) -> np.ndarray:
+def integrated_contrast(rgb: np.ndarray, mask: np.ndarray, gsd: float, lab: np.ndarray | None = None
+                        ) -> np.ndarray:
     """Per Lab channel, the sum over the object and a 2 px margin of pixel - background (the ring's median),
     times the pixel area: an object's contrast in Lab units x m^2. Averaging pixels about conserves it, so a
-    tuft 2 px wide and its 40 px view agree, and a bright tuft differs from a faint one of the same size."""
+    tuft 2 px wide and its 40 px view agree, and a bright tuft differs from a faint one of the same size.
+    ``lab``: the crop in Lab, when the caller has it already."""
     import cv2
 
     h, w = mask.shape
-    ring = max(1, min(h, w) // 20)
-    edge = np.zeros((h, w), bool)
-    edge[:ring], edge[-ring:], edge[:, :ring], edge[:, -ring:] = True, True, True, True
-    lab = rgb_to_lab(rgb)
+    edge = _crop_ring(h, w)
+    lab = rgb_to_lab(rgb) if lab is None else lab
     bg = np.median(lab[edge], axis=0)
     region = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
     region &= ~edge
@@ -505,14 +513,15 @@ class DefaultEmbedder:
         ])
         blocks.append(("size", wt["size"] * _unit(size)))
         fade = float(np.clip(2.0 - length_px / CONTRAST_FULL_PX, 0.0, 1.0))
+        lab_all = rgb_to_lab(rgb)  # the whole crop (``lab`` is the pose-normalised object)
         if fade > 0:
-            contrast = integrated_contrast(rgb, mask, gsd)
+            contrast = integrated_contrast(rgb, mask, gsd, lab_all)
             blocks.append(("contrast", wt["contrast"] * fade * _unit(self._contrast(contrast))))
             blocks.append(("contrast_dir", wt["contrast_dir"] * fade * _unit(self._contrast_dir(contrast))))
         else:
             blocks.append(("contrast", np.zeros(3 * CONTRAST_BINS, np.float32)))
             blocks.append(("contrast_dir", np.zeros(3 * CONTRAST_DIR_BINS, np.float32)))
-        blocks.append(("edge_extent", wt["edge_extent"] * _unit(self._edge_extent(rgb_to_lab(rgb), gsd))))
+        blocks.append(("edge_extent", wt["edge_extent"] * _unit(self._edge_extent(lab_all, gsd))))
         # colour: ab histogram (soft), L histogram
         ia = ((np.clip(fg[:, 1], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
         ib = ((np.clip(fg[:, 2], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
@@ -578,9 +587,7 @@ class DefaultEmbedder:
         gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3)
         mag = cv2.magnitude(gx.reshape(h, -1), gy.reshape(h, -1)).reshape(h, w, 3)
         grad = cv2.transform(mag, np.array([[1.0, 0.5, 0.5]], np.float32))
-        ring = max(1, min(h, w) // 20)
-        edge = np.zeros((h, w), bool)
-        edge[:ring], edge[-ring:], edge[:, :ring], edge[:, -ring:] = True, True, True, True
+        edge = _crop_ring(h, w)
         excess = np.maximum(grad - float(np.quantile(grad[edge], EDGE_QUANTILE)), 0.0)
         excess[edge] = 0.0
         total = float(excess.sum())

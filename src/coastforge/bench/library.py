@@ -28,6 +28,7 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+from typing import Sequence
 
 from ..rng import stage_rng
 from .segmentation import SHARED as SHARED_DATA  # ../shared/data beside the project
@@ -188,7 +189,9 @@ def pixel_band(length_px: float) -> str:
     return PX_BANDS[-1]
 
 
-def retrieval(lib, queries) -> dict:
+def retrieval(lib, queries, seeds: Sequence[int] | None = None) -> dict:
+    """Top-1 asset and category accuracy of (crop, gsd, asset_id, category) queries, split by category,
+    object length and (given ``seeds``, one per query) by seed."""
     if not queries:
         return {"queries": 0}
     t0 = time.perf_counter()
@@ -198,16 +201,18 @@ def retrieval(lib, queries) -> dict:
     hits = lib.search(vecs, k=1)
     t_search = time.perf_counter() - t0
     per_cat = defaultdict(lambda: [0, 0, 0])
+    per_seed = defaultdict(lambda: [0, 0, 0])
     confusions = defaultdict(int)
     ok_asset = ok_cat = 0
-    for (img, gsd, aid, cat), h in zip(queries, hits):
+    for i, ((img, gsd, aid, cat), h) in enumerate(zip(queries, hits)):
         top = h[0][0] if h else None
         tcat = lib.asset(top).category if top else None
         ok_asset += top == aid
         ok_cat += tcat == cat
-        per_cat[cat][0] += 1
-        per_cat[cat][1] += top == aid
-        per_cat[cat][2] += tcat == cat
+        for tally, key in ((per_cat, cat),) + (((per_seed, seeds[i]),) if seeds is not None else ()):
+            tally[key][0] += 1
+            tally[key][1] += top == aid
+            tally[key][2] += tcat == cat
         if top != aid:
             confusions[f"{aid}->{top}"] += 1
     n = len(queries)
@@ -248,6 +253,8 @@ def retrieval(lib, queries) -> dict:
         # per category and length band: correct category / queries
         "category_by_pixels": {c: {b: f"{v[b][1]}/{v[b][0]}" for b in PX_BANDS if b in v}
                                for c, v in sorted(by_px_cat.items())},
+        "per_seed": {str(k): {"queries": v[0], "top1_asset": round(v[1] / v[0], 4),
+                              "top1_category": round(v[2] / v[0], 4)} for k, v in sorted(per_seed.items())},
         "ms_per_query": round(1000 * (t_embed + t_search) / n, 3),
         "ms_embed_per_query": round(1000 * t_embed / n, 3),
         "top_confusions": dict(sorted(confusions.items(), key=lambda t: -t[1])[:10]),
@@ -347,13 +354,13 @@ def main(argv=None) -> None:
                          "load_or_build_s": round(time.perf_counter() - t0, 2),
                          "category_vote_t": getattr(lib, "CATEGORY_VOTE_T", None)}
     try:
-        per_seed = {s: render_queries(lib, args.per_asset, s) for s in args.seeds}
-        queries = [q for qs in per_seed.values() for q in qs]
-        report["rendered_queries"] = retrieval(lib, queries)
+        queries, seeds = [], []
+        for s in args.seeds:
+            qs = render_queries(lib, args.per_asset, s)
+            queries += qs
+            seeds += [s] * len(qs)
+        report["rendered_queries"] = retrieval(lib, queries, seeds)
         report["rendered_queries"]["seeds"] = list(args.seeds)
-        report["rendered_queries"]["per_seed"] = {
-            str(s): {k: retrieval(lib, qs)[k] for k in ("queries", "top1_asset", "top1_category")}
-            for s, qs in per_seed.items()} if len(per_seed) > 1 else {}
         report["rendered_queries"]["ms_single_query"] = single_query_ms(lib, queries)
         if not args.skip_synth:
             levels, why = [], ""
