@@ -172,3 +172,26 @@ def test_a_mask_lost_at_the_work_size_falls_back_to_the_centre():
         warnings.simplefilter("error")
         v = DefaultEmbedder().embed([img], [0.1])
     assert np.isfinite(v).all() and abs(float(np.linalg.norm(v)) - 1.0) < 1e-5
+
+
+def test_ring_clutter_tells_a_car_in_a_row_from_a_lone_one():
+    """The ring clutter is the share of the crop's ring unlike its median colour: about 0 for a lone car on
+    asphalt (grain, no neighbours), well above it when the neighbours of a parking row cut the ring; the
+    code peaks at that share."""
+    from coastforge.assets.embed import CLUTTER_BINS, DefaultEmbedder, _centres, rgb_to_lab
+
+    n = 70  # a 4.5 m car at 0.1 m/px, cropped 1.5 x its length + 4 px
+    asphalt = _water(n, colour=(105, 105, 108))
+    lone = asphalt.copy()
+    lone[26:44, 12:58] = (200, 40, 40)
+    row = lone.copy()
+    for dy in (-26, 26):  # neighbours 2.6 m to either side, running out of the crop
+        row[26 + dy:44 + dy, 12:58] = (230, 230, 225) if dy < 0 else (25, 25, 30)
+
+    def share(img):
+        code = DefaultEmbedder._clutter(rgb_to_lab(np.clip(img, 0, 255).astype(np.uint8)))
+        assert code.shape == (CLUTTER_BINS,)
+        return float(_centres(0.0, 1.0, CLUTTER_BINS)[int(np.argmax(code))])
+
+    assert share(asphalt) == 0.0 and share(lone) == 0.0
+    assert share(row) >= 0.15

@@ -178,10 +178,14 @@ def test_build_full_views_query_and_library_json(two_assets, tmp_path):
     assert len(rec["blue_car"]["paint_views"]) == 7 and len(rec["red_boat"]["paint_views"]) == 7
     # query-like views: the 4.5 m car (views at 0.2 m/px) is under 40 px long at 0.28 and 0.4 m/px; those
     # stand in for the 2x downsampled copies (0.4 m/px), which are left out. Per GSD: the 3 lightings x 2
-    # backgrounds, and 2 random lightings per background
+    # backgrounds, and 2 random lightings per background; then 2 crowded views (in a parking row) at 0.1 and
+    # 0.2 m/px each
     qv = rec["blue_car"]["query_views"]
-    assert sorted({q["gsd_m"] for q in qv}) == [0.28, 0.4] and len(qv) == 2 * (6 + 4)
-    assert sum(q["lighting"] == "random" for q in qv) == 2 * 4
+    solo = [q for q in qv if not q.get("crowded")]
+    assert sorted({q["gsd_m"] for q in solo}) == [0.28, 0.4] and len(solo) == 2 * (6 + 4)
+    assert sum(q["lighting"] == "random" for q in solo) == 2 * 4
+    crowded = [(q["gsd_m"], q["background"]) for q in qv if q.get("crowded")]
+    assert crowded == [(0.1, "ground")] * 2 + [(0.2, "ground")] * 2
     assert (tmp_path / "lib" / rec["blue_car"]["query_views_file"]).is_file()
     assert rec["blue_car"]["index_rows"][1] == (6 + 7) + len(qv)
     from coastforge.assets.library import repaint
@@ -394,7 +398,7 @@ def test_query_views_of_small_assets(tmp_path, monkeypatch):
                           {"id": "red_boat", "category": "boat", "mesh": "boat.glb", "length_m": 6.0}])
     cfg = LibraryConfig(lightings=1, backgrounds=("water",), embed_scales=(1.0, 2.0), view_size_px=64,
                         paint_variants=False, query_view_gsds_m=(0.1, 0.2, 0.4), query_view_max_px=20,
-                        query_view_random_lightings=0)
+                        query_view_random_lightings=0, crowded_views=0)
     out = tmp_path / "lib"
     lib = build_library(man, out, config=cfg, workers=1)
     doc = {a["id"]: a for a in json.loads((out / "library.json").read_text())["assets"]}
@@ -449,6 +453,47 @@ def test_query_views_under_random_lightings():
     assert all(np.array_equal(a[0], b[0]) and a[1] == b[1] for a, b in zip(views, again))
     with pytest.raises(LibraryError, match="query_view_random_lightings"):
         render_query_views(mesh, "buoy", (0.6, 0.6, 1.0), 0.05, LibraryConfig(query_view_random_lightings=-1))
+
+
+def test_crowded_views_show_the_asset_between_copies_of_itself():
+    """Vehicles and boats (up to 25 m) also get views between copies of themselves, as parked or berthed,
+    centred on the middle one; other categories and huge boats do not; bad settings are refused by name."""
+    from coastforge.assets.library import crowd_mesh, render_query_views
+    from coastforge.render import render_mesh_view, standard_view_lightings
+    from coastforge.rng import stage_rng
+
+    car = _boat_mesh(length=4.5, beam=1.8, height=1.4, colour=(30, 60, 160))
+    b = car.bounds
+    centre = (0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1]))
+    rng = stage_rng(0, "test-crowd")
+    lateral = []
+    for _ in range(20):
+        crowd, c = crowd_mesh(car, "vehicle", (4.5, 1.8, 1.4), rng)
+        assert c == pytest.approx(centre)
+        n = len(crowd.faces) // len(car.faces)
+        assert 1 <= n <= 4 and len(crowd.faces) == n * len(car.faces)
+        lateral.append(crowd.bounds[1, 1] - crowd.bounds[0, 1])
+    # neighbours stand beside it with a gap (wider than the car by more than its width), at least once
+    assert max(lateral) > 2 * 1.8 + 0.4
+    cfg = LibraryConfig(lightings=1, query_view_gsds_m=(), crowded_views=2, crowded_gsds_m=(0.1, 0.2))
+    views = render_query_views(car, "car", (4.5, 1.8, 1.4), 0.05, cfg, "vehicle")
+    assert [(m["gsd_m"], m["background"], m.get("crowded")) for _, m in views] == \
+        [(0.1, "ground", True)] * 2 + [(0.2, "ground", True)] * 2
+    img, meta = views[0]
+    assert img.shape == (72, 72, 3)  # cropped like a query: 1.5 x the length + 4 px
+    # the middle car is at the centre: its blue body is there, as in a lone render at that yaw
+    lone = render_mesh_view(car, 0.1, 72, standard_view_lightings()[1], "ground", yaw_deg=meta["yaw_deg"])
+    assert img[36, 36, 2] > img[36, 36, 0] + 40 and lone[36, 36, 2] > lone[36, 36, 0] + 40
+    # the same views on every build
+    again = render_query_views(car, "car", (4.5, 1.8, 1.4), 0.05, cfg, "vehicle")
+    assert all(np.array_equal(a[0], b[0]) and a[1] == b[1] for a, b in zip(views, again))
+    assert render_query_views(car, "bush", (4.5, 1.8, 1.4), 0.05, cfg, "tree") == []
+    assert render_query_views(car, "ship", (40.0, 8.0, 6.0), 0.4, cfg, "boat") == []
+    with pytest.raises(LibraryError, match="crowded_views"):
+        render_query_views(car, "car", (4.5, 1.8, 1.4), 0.05, LibraryConfig(crowded_views=-1), "vehicle")
+    with pytest.raises(LibraryError, match="crowded_gsds_m"):
+        render_query_views(car, "car", (4.5, 1.8, 1.4), 0.05, LibraryConfig(crowded_gsds_m=(0.1, 0.0)),
+                           "vehicle")
 
 
 # --------------------------------------------------------------------------- folders, thumbnails, CLI, kit

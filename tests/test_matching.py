@@ -18,7 +18,8 @@ from coastforge.matching import ShapeMatcher, match_detections, orientation_fiel
 from coastforge.render import render_mesh_view, standard_view_lightings
 from coastforge.types import Detection, GeoImage, Grid
 
-SMALL = LibraryConfig(lightings=1, backgrounds=("ground",), embed_scales=(1.0,), view_size_px=64, paint_variants=False)
+SMALL = LibraryConfig(lightings=1, backgrounds=("ground",), embed_scales=(1.0,), view_size_px=64,
+                      paint_variants=False, crowded_views=0)  # blue cars only (crowded views are repainted)
 BODY, GLASS = (40, 60, 200), (25, 28, 32)
 
 
@@ -171,8 +172,9 @@ def test_library_views_on(car_library):
 
 def test_matcher_leaves_the_edge_extent_out_of_its_crops(car_library):
     """The edge extent measures whatever has edges in a crop: a car parked between two others looks as wide
-    as the row. The matcher's vectors drop that block (zero, then unit again); other embedders are untouched."""
-    from coastforge.matching import _without_edge_extent, detection_crop
+    as the row. The matcher's vectors drop that block and the ring clutter (zero, then unit again); other
+    embedders are untouched."""
+    from coastforge.matching import _without_context_blocks, detection_crop
 
     emb = car_library.embedder
     sl = emb.block_slices["edge_extent"]
@@ -185,12 +187,13 @@ def test_matcher_leaves_the_edge_extent_out_of_its_crops(car_library):
     v = emb.embed(crops, [gsd, gsd])
     # the row's edges reach farther out than the lone car's: the block differs ...
     assert float(v[0, sl] @ v[1, sl]) / max(float(np.linalg.norm(v[0, sl]) * np.linalg.norm(v[1, sl])), 1e-9) < 0.8
-    w = _without_edge_extent(car_library, v)
+    w = _without_context_blocks(car_library, v)
     assert not w[:, sl].any() and np.allclose(np.linalg.norm(w, axis=1), 1.0, atol=1e-5)
+    assert v[:, emb.block_slices["clutter"]].any() and not w[:, emb.block_slices["clutter"]].any()
     # ... and without it the two crops are closer than with it
     assert float(w[0] @ w[1]) > float(v[0] @ v[1])
 
     class Other:  # an embedder without blocks (dinov3): vectors pass unchanged
         embedder = object()
 
-    assert _without_edge_extent(Other(), v) is v
+    assert _without_context_blocks(Other(), v) is v

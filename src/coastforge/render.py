@@ -507,9 +507,11 @@ def render_mesh_view(
     background: str,
     yaw_deg: float = 0.0,
     seed: int = 0,
+    centre_xy: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """One asset centred (its footprint's bounding-box centre at the image centre), seen from above on a
-    'water' (dark, slightly textured) or 'ground' (light grey/beige) background. (size, size, 3) uint8."""
+    'water' (dark, slightly textured) or 'ground' (light grey/beige) background. (size, size, 3) uint8.
+    ``centre_xy``: the mesh point (x, y) to centre instead (one object of a mesh holding several)."""
     gsd = _check_gsd(gsd_m)
     if background not in ("water", "ground"):
         raise InputError(f"background = {background!r} must be 'water' or 'ground'")
@@ -524,7 +526,7 @@ def render_mesh_view(
     grid = PixelGrid((ext, ext), n, n)
     noise = NoiseBank(grid, seed)
     b = mesh.bounds
-    cx, cy = 0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1])
+    cx, cy = (0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1])) if centre_xy is None else centre_xy
     r = np.deg2rad(yaw_deg)
     # rotate the centring offset too, so the footprint centre lands on the image centre at any yaw
     ox, oy = -(np.cos(r) * cx - np.sin(r) * cy), -(np.sin(r) * cx + np.cos(r) * cy)

@@ -9,7 +9,9 @@ A library is a folder::
     views/<id>/l<k>_<background>.png   top-down renders, lighting k of 3, background water|ground
     views/<id>/paint<k>_<background>.png   vehicles and small boats repainted in common body colours
     views/<id>/query_views.npz  small assets also rendered as a query sees them: at coarse GSDs (a few
-                        pixels long), random yaw, cropped like the matcher's crops (LibraryConfig.query_view_*)
+                        pixels long), random yaw, cropped like the matcher's crops
+                        (LibraryConfig.query_view_*); vehicles and boats also between copies of
+                        themselves (LibraryConfig.crowded_views)
     views/<id>/silhouette.png   the footprint (255 = object), aligned with the views
 
 ``build_library`` re-renders only assets whose mesh or settings changed and re-embeds only what the
@@ -331,6 +333,8 @@ def view_settings(config: LibraryConfig) -> dict:
         "query_views": {"version": 2, "gsds_m": [float(g) for g in config.query_view_gsds_m],
                         "random_lightings": int(config.query_view_random_lightings),
                         "max_px": float(config.query_view_max_px), "pad": QUERY_PAD, "min_px": QUERY_MIN_PX},
+        "crowded_views": {"version": 1, "n": int(config.crowded_views),
+                          "gsds_m": [float(g) for g in config.crowded_gsds_m]},
     }
 
 
@@ -392,7 +396,43 @@ def query_view_plan(dims_m: Sequence[float], view_gsd: float, config: LibraryCon
     return out
 
 
-def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: float, config: LibraryConfig):
+CROWD_MAX_LENGTH_M = 25.0  # larger boats lie alone (ships at a quay, not in berths)
+CROWD_MAX_PX = 160  # crowded views at most this many pixels across
+
+
+def crowd_mesh(mesh, category: str, dims_m: Sequence[float], rng) -> tuple[Any, tuple[float, float]]:
+    """The asset between copies of itself as cars are parked or boats berthed (side by side, a small gap,
+    some bays empty; cars facing either way, sometimes a row behind), repainted where it can be. Returns the
+    mesh and the centre of the middle asset's footprint."""
+    import trimesh
+
+    L, W = float(dims_m[0]), float(dims_m[1])
+    b = mesh.bounds
+    c = np.array([0.5 * (b[0, 0] + b[1, 0]), 0.5 * (b[0, 1] + b[1, 1]), 0.0])
+    paintable = is_paintable(category, dims_m)
+    vehicle = category == "vehicle"
+
+    def copy(dx: float, dy: float, flip: bool, paint: bool):
+        m = repaint(mesh, PAINTS[int(rng.integers(len(PAINTS)))]) if paint else mesh.copy()
+        if flip:
+            m.apply_transform(trimesh.transformations.rotation_matrix(math.pi, [0, 0, 1], c))
+        m.apply_translation([dx, dy, 0.0])
+        return m
+
+    parts = [copy(0.0, 0.0, False, paintable and rng.random() < 0.5)]
+    gap = (0.4, 1.2) if vehicle else (0.6, 2.0)
+    for side in (-1.0, 1.0):
+        if rng.random() < 0.85:
+            parts.append(copy(float(rng.uniform(-0.1, 0.1)) * L, side * (W + float(rng.uniform(*gap))),
+                              vehicle and rng.random() < 0.5, paintable))
+    if vehicle and rng.random() < 0.5:  # the row behind (or in front), nose to nose
+        sx = float(rng.choice([-1.0, 1.0])) * (L + float(rng.uniform(0.3, 1.0)))
+        parts.append(copy(sx, float(rng.uniform(-0.3, 0.3)), rng.random() < 0.5, paintable))
+    return trimesh.util.concatenate(parts), (float(c[0]), float(c[1]))
+
+
+def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: float, config: LibraryConfig,
+                       category: str | None = None):
     """Query-like views (see ``LibraryConfig.query_view_gsds_m``): list of (image, meta dict)."""
     from ..render import random_lighting, render_mesh_view
     from ..rng import stage_rng
@@ -417,6 +457,28 @@ def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: f
                 yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
                 img = render_mesh_view(mesh, g, side, light, bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
                 out.append((img, {"lighting": "random", "background": bg, "gsd_m": g, "yaw_deg": yaw}))
+    n_crowd = int(config.crowded_views)
+    if n_crowd < 0:
+        raise LibraryError(f"library.crowded_views = {n_crowd} must be 0 or more")
+    for g in config.crowded_gsds_m:
+        if not (float(g) > 0 and math.isfinite(float(g))):
+            raise LibraryError(f"library.crowded_gsds_m has {g!r}; give positive metres per pixel")
+    if n_crowd > 0 and category in ("vehicle", "boat") and float(dims_m[0]) <= CROWD_MAX_LENGTH_M:
+        size = max(float(dims_m[0]), float(dims_m[1]))
+        crng = stage_rng(0, "library-crowded-views", asset_id)
+        bg = "ground" if category == "vehicle" else "water"
+        for g in sorted(float(x) for x in config.crowded_gsds_m):
+            side = int(max(QUERY_MIN_PX, math.ceil(size * QUERY_PAD / g - 1e-6) + 4))
+            if side > CROWD_MAX_PX:
+                continue
+            for _ in range(n_crowd):
+                crowd, centre = crowd_mesh(mesh, category, dims_m, crng)
+                light = random_lighting(crng)
+                yaw = round(float(crng.uniform(-180.0, 180.0)), 3)
+                seed = int(crng.integers(1 << 30))
+                img = render_mesh_view(crowd, g, side, light, bg, yaw_deg=yaw, seed=seed, centre_xy=centre)
+                out.append((img, {"lighting": "random", "background": bg, "gsd_m": g, "yaw_deg": yaw,
+                                  "crowded": True}))
     return out
 
 
@@ -524,7 +586,7 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
                 write_png(root / rel, img)
                 paint_views.append({"file": rel, "lighting": 1, "background": bg, "paint": list(rgb)})
                 images.append(img)
-        qv = render_query_views(mesh, spec.id, norm.dims_m, gsd, config)
+        qv = render_query_views(mesh, spec.id, norm.dims_m, gsd, config, spec.category)
         query_images, query_views = [q[0] for q in qv], [q[1] for q in qv]
         qfile = f"views/{spec.id}/query_views.npz" if qv else None
         if qfile:
