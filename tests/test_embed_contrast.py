@@ -177,7 +177,7 @@ def test_a_mask_lost_at_the_work_size_falls_back_to_the_centre():
 def test_ring_clutter_tells_a_car_in_a_row_from_a_lone_one():
     """The ring clutter is the share of the crop's ring unlike its median colour: about 0 for a lone car on
     asphalt (grain, no neighbours), well above it when the neighbours of a parking row cut the ring; the
-    code peaks at that share."""
+    code peaks at that share. The background's colour counts only in a crowded crop."""
     from coastforge.assets.embed import CLUTTER_BINS, DefaultEmbedder, _centres, rgb_to_lab
 
     n = 70  # a 4.5 m car at 0.1 m/px, cropped 1.5 x its length + 4 px
@@ -188,10 +188,21 @@ def test_ring_clutter_tells_a_car_in_a_row_from_a_lone_one():
     for dy in (-26, 26):  # neighbours 2.6 m to either side, running out of the crop
         row[26 + dy:44 + dy, 12:58] = (230, 230, 225) if dy < 0 else (25, 25, 30)
 
-    def share(img):
-        code = DefaultEmbedder._clutter(rgb_to_lab(np.clip(img, 0, 255).astype(np.uint8)))
-        assert code.shape == (CLUTTER_BINS,)
-        return float(_centres(0.0, 1.0, CLUTTER_BINS)[int(np.argmax(code))])
+    def context(img):
+        code, colour = DefaultEmbedder._ring_context(rgb_to_lab(np.clip(img, 0, 255).astype(np.uint8)))
+        assert code.shape == (CLUTTER_BINS,) and np.linalg.norm(code) == pytest.approx(1.0)
+        return float(_centres(0.0, 1.0, CLUTTER_BINS)[int(np.argmax(code))]), colour
 
-    assert share(asphalt) == 0.0 and share(lone) == 0.0
-    assert share(row) >= 0.15
+    (s_asphalt, _), (s_lone, c_lone), (s_row, c_row) = context(asphalt), context(lone), context(row)
+    assert s_asphalt == 0.0 and s_lone == 0.0 and s_row >= 0.15
+    assert not c_lone.any() and np.linalg.norm(c_row) > 0.7
+    # the row on water instead of asphalt: another background code; on slightly lighter asphalt: about the same
+    ground = np.abs(row - 105).sum(-1, keepdims=True) < 25
+
+    def cos(img):
+        s, c = context(img)
+        assert s >= 0.15
+        return float(c @ c_row) / (np.linalg.norm(c) * np.linalg.norm(c_row))
+
+    assert cos(row + (np.asarray((20, 70, 110), np.float32) - 105.0) * ground) < 0.6
+    assert cos(row + 4.0 * ground) > 0.9

@@ -167,9 +167,10 @@ class LibraryConfig:
     query_view_random_lightings: int = 2
     # vehicles and boats also rendered between copies of themselves, as they are parked or berthed, at these
     # GSDs (this many views each, random lighting and yaw): a crop around a car in a row or a boat in a berth
-    # holds its neighbours too (synthetic-scene crops, seeds 0-2: category 0.77 -> 0.84; real DOTA crops
-    # 0.927 -> 0.954; rendered isolated queries, seeds 0-9: 63 -> 61 category misses, with the embedder's
-    # ring-clutter block; 5 views: synthetic 0.88 but 71 rendered misses)
+    # holds its neighbours too (synthetic-scene crops, seeds 0-2: category 0.77 -> 0.84, 0.88 with the
+    # embedder's background block; real DOTA crops 0.927 -> 0.954; rendered isolated queries, seeds 0-9:
+    # 63 -> 61 category misses, with the embedder's ring-clutter block; 5 views: synthetic 0.88 but 71
+    # rendered misses)
     crowded_views: int = 2
     crowded_gsds_m: tuple[float, ...] = (0.1, 0.2)
 

@@ -42,7 +42,7 @@ _VERSION = 7  # 4: integrated contrast in Lab (was a ratio to the background per
 # 5: shadow test calibrated on renders (SHADOW_BLUE_MAX), speckle removed by area (SPECKLE_PX),
 #   a part covering the crop's centre outranks parts that leave the crop (CENTRE_FRAC)
 # 6: the integrated contrast's direction, the edge extent
-# 7: the ring clutter
+# 7: the ring clutter and, faded in with it, the background's colour
 SIZE_BINS = (96, 80, 80)  # Gaussian soft-bins over log length / width / area (sigma ~ 9 %, 9 %, 19 %)
 # segmentation (tuned on the retrieval benchmark; recorded in the embedder settings)
 THR_K = 7.0  # foreground = farther from every ring colour than median + THR_K robust sigmas
@@ -95,7 +95,12 @@ EDGE_BINS = 48
 CLUTTER_DL = 12.0
 CLUTTER_BINS = 21
 CLUTTER_SIGMA = 0.05
-
+# the background's colour (the ring's median Lab), faded in with the clutter (full from this share): an
+# isolated object may lie on any ground in a query and the library renders every asset on water and on
+# ground, but a crowded crop shows where it is (a car park, a marina) and the crowded views are rendered there
+# (cars on ground, boats on water). Synthetic-scene crops: category 0.845 -> 0.879; rendered isolated queries
+# 61 -> 60 misses; real crops unchanged (0.954). Ungated (at 0.5) it cost the isolated queries 7 misses
+BG_FULL = 0.2
 
 
 
@@ -449,7 +454,7 @@ class DefaultEmbedder:
     WEIGHTS = {
         "size": 0.5, "colour_ab": 1.5, "colour_l": 0.5, "layout": 1.2,
         "shape": 0.6, "profile": 0.6, "radial": 0.6, "hog": 0.9, "lbp": 0.4, "contrast": 1.5,
-        "contrast_dir": 1.0, "edge_extent": 1.5, "clutter": 0.7,
+        "contrast_dir": 1.0, "edge_extent": 1.5, "clutter": 0.7, "background": 1.0,
     }
     CANON = (32, 64)  # pose-normalised crop (rows across the width, columns along the length)
     MAX_WORK_PX = 128  # larger crops are downsampled first: finer detail does not change the blocks
@@ -476,6 +481,7 @@ class DefaultEmbedder:
                              "full_px": CONTRAST_FULL_PX, "dir_bins": CONTRAST_DIR_BINS},
                 "edge_extent": {"quantile": EDGE_QUANTILE, "bins": EDGE_BINS, "fractions": [0.5, 0.85]},
                 "clutter": {"dl": CLUTTER_DL, "bins": CLUTTER_BINS, "sigma": CLUTTER_SIGMA},
+                "background": {"full_share": BG_FULL, "bins": [11, 13, 13]},
                 "segmentation": {"thr_k": THR_K, "hyst": HYST, "min_support": MIN_SUPPORT, "separate": SEPARATE,
                                  "restore_dark": RESTORE_DARK, "drop_edge_parts": DROP_EDGE_PARTS,
                                  "min_mask_px": MIN_MASK_PX, "shadow_blue_max": SHADOW_BLUE_MAX,
@@ -534,7 +540,9 @@ class DefaultEmbedder:
             blocks.append(("contrast", np.zeros(3 * CONTRAST_BINS, np.float32)))
             blocks.append(("contrast_dir", np.zeros(3 * CONTRAST_DIR_BINS, np.float32)))
         blocks.append(("edge_extent", wt["edge_extent"] * _unit(self._edge_extent(lab_all, gsd))))
-        blocks.append(("clutter", wt["clutter"] * _unit(self._clutter(lab_all))))
+        clutter, background = self._ring_context(lab_all)
+        blocks.append(("clutter", wt["clutter"] * clutter))
+        blocks.append(("background", wt["background"] * background))
         # colour: ab histogram (soft), L histogram
         ia = ((np.clip(fg[:, 1], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
         ib = ((np.clip(fg[:, 2], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
@@ -590,12 +598,17 @@ class DefaultEmbedder:
         return np.concatenate([_rbf(float(c) / n, -1.0, 1.0, CONTRAST_DIR_BINS) for c in contrast])
 
     @staticmethod
-    def _clutter(lab: np.ndarray) -> np.ndarray:
-        """Soft-binned share of the crop ring unlike its median colour: neighbours (parked cars, boats in
-        berths, a pier) cut the ring of a crowded crop; an isolated object's ring is plain background."""
+    def _ring_context(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The crop's surroundings, as two unit codes: the share of its ring unlike the ring's median colour
+        (neighbours, parked cars or boats in berths, cut the ring of a crowded crop; an isolated object's ring
+        is plain background), and that median colour, faded in with the share (see ``BG_FULL``)."""
         ring = lab[_crop_ring(*lab.shape[:2])]
-        d = np.linalg.norm(ring - np.median(ring, 0), axis=1)
-        return _rbf(float((d > CLUTTER_DL).mean()), 0.0, 1.0, CLUTTER_BINS, CLUTTER_SIGMA)
+        med = np.median(ring, 0)
+        share = float((np.linalg.norm(ring - med, axis=1) > CLUTTER_DL).mean())
+        clutter = _rbf(share, 0.0, 1.0, CLUTTER_BINS, CLUTTER_SIGMA)
+        colour = np.concatenate([_rbf(float(med[0]), 0.0, 100.0, 11), _rbf(float(med[1]), -30.0, 30.0, 13),
+                                 _rbf(float(med[2]), -30.0, 30.0, 13)])
+        return _unit(clutter), min(1.0, share / BG_FULL) * _unit(colour)
 
     @staticmethod
     def _edge_extent(lab: np.ndarray, gsd: float) -> np.ndarray:
