@@ -11,10 +11,12 @@ about a percent from seed to seed); results are also split by the object's lengt
 category confusion matrix (query category x top-1 category) is reported. Crops of the labelled ships and
 vehicles of the real photos in ../shared/data are scored by category only (no asset is known for a real
 object). When ``coastforge.synth`` is available: crops of the objects of synthetic benchmark scenes (embedding
-top-1, where random car/boat paint defeats colour), and the matcher itself (embedding + shape fit + size,
+top-1; cars and boats there stand in rows and berths with their neighbours in the crop, in random paint),
+and the matcher itself (embedding + shape fit + size,
 ``coastforge.matching``) on the scenes' truth boxes, per category and GSD. Build time: a 159-asset library
 (models repeated with slightly different real sizes, so every one is rendered) x 6 views (plus the query-like
-views of its small assets, see ``LibraryConfig.query_view_gsds_m``), rendered, embedded and indexed.
+views of its small assets, see ``LibraryConfig.query_view_gsds_m``, and the crowded views of its cars and
+boats, ``LibraryConfig.crowded_views``), rendered, embedded and indexed.
 """
 
 from __future__ import annotations
