@@ -434,7 +434,7 @@ def crowd_mesh(mesh, category: str, dims_m: Sequence[float], rng) -> tuple[Any, 
 def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: float, config: LibraryConfig,
                        category: str | None = None):
     """Query-like views (see ``LibraryConfig.query_view_gsds_m``): list of (image, meta dict)."""
-    from ..render import random_lighting, render_mesh_view
+    from ..render import render_mesh_view
     from ..rng import stage_rng
 
     n_random = int(config.query_view_random_lightings)
@@ -452,11 +452,7 @@ def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: f
         # colour, the sun and haze change: these views sample that variety (random lightings of the library's
         # own stream)
         for bg in config.backgrounds:
-            for _ in range(n_random):
-                light = random_lighting(rng)
-                yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
-                img = render_mesh_view(mesh, g, side, light, bg, yaw_deg=yaw, seed=int(rng.integers(1 << 30)))
-                out.append((img, {"lighting": "random", "background": bg, "gsd_m": g, "yaw_deg": yaw}))
+            out.extend(_random_lit_view(mesh, g, side, bg, rng) for _ in range(n_random))
     n_crowd = int(config.crowded_views)
     if n_crowd < 0:
         raise LibraryError(f"library.crowded_views = {n_crowd} must be 0 or more")
@@ -473,13 +469,20 @@ def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: f
                 continue
             for _ in range(n_crowd):
                 crowd, centre = crowd_mesh(mesh, category, dims_m, crng)
-                light = random_lighting(crng)
-                yaw = round(float(crng.uniform(-180.0, 180.0)), 3)
-                seed = int(crng.integers(1 << 30))
-                img = render_mesh_view(crowd, g, side, light, bg, yaw_deg=yaw, seed=seed, centre_xy=centre)
-                out.append((img, {"lighting": "random", "background": bg, "gsd_m": g, "yaw_deg": yaw,
-                                  "crowded": True}))
+                img, meta = _random_lit_view(crowd, g, side, bg, crng, centre)
+                out.append((img, {**meta, "crowded": True}))
     return out
+
+
+def _random_lit_view(mesh, gsd: float, side: int, background: str, rng, centre_xy=None):
+    """One query-like view under a random lighting and yaw drawn from ``rng``: (image, meta dict)."""
+    from ..render import random_lighting, render_mesh_view
+
+    light = random_lighting(rng)
+    yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
+    img = render_mesh_view(mesh, gsd, side, light, background, yaw_deg=yaw, seed=int(rng.integers(1 << 30)),
+                           centre_xy=centre_xy)
+    return img, {"lighting": "random", "background": background, "gsd_m": gsd, "yaw_deg": yaw}
 
 
 def write_query_views(path: Path, images: Sequence[np.ndarray]) -> None:
