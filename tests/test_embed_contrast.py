@@ -1,5 +1,5 @@
 """Default embedder: Lab integrated contrast on dark water and its direction; foam at the crop's edge is not
-the object; the edge extent measures a hull the colour mask misses."""
+the object; the edge extent measures a hull the colour mask misses; sun glints are not the object."""
 
 from __future__ import annotations
 
@@ -37,9 +37,9 @@ def test_foam_at_the_crop_edge_is_not_the_object(monkeypatch, drop_edge_parts, o
     monkeypatch.setattr(E, "DROP_EDGE_PARTS", drop_edge_parts)
     img = _water()
     truth = _tuft(img, (60, 140, 50), half=2)
-    img[6:10, :] = (240, 245, 245)  # a thin foam streak, 4 x 60 px: a minority of the crop's ring
+    img[4:12, :] = (240, 245, 245)  # a foam streak, 8 x 60 px (wider than a glint): a minority of the ring
     m = object_mask(np.clip(img, 0, 255).astype(np.uint8))
-    on_foam = m[6:10].sum()
+    on_foam = m[4:12].sum()
     hit = (m & truth).sum() / truth.sum()
     assert (on_foam == 0 and hit > 0.8) == ok
 
@@ -206,3 +206,45 @@ def test_ring_clutter_tells_a_car_in_a_row_from_a_lone_one():
 
     assert cos(row + (np.asarray((20, 70, 110), np.float32) - 105.0) * ground) < 0.6
     assert cos(row + 4.0 * ground) > 0.9
+
+
+def _glitter(img, seed, n=40, avoid=None):
+    """Sun glints: white specks of 2 x 3 px scattered over the crop (some touch the object)."""
+    rng = stage_rng(seed, "test-embed-glints")
+    h, w = img.shape[:2]
+    for _ in range(n):
+        y, x = int(rng.integers(0, h - 3)), int(rng.integers(0, w - 4))
+        if avoid is not None and avoid[y:y + 2, x:x + 3].any():
+            continue
+        img[y:y + 2, x:x + 3] = (235, 240, 240)
+
+
+@pytest.mark.parametrize("glints, ok", [(True, True), (False, False)])
+def test_sun_glints_around_a_pier_are_not_the_object(monkeypatch, glints, ok):
+    """A wooden pier on glittering water: specks that touch its outline or lie beside it are glints, so the
+    mask is the pier alone; without the glint rule they join it and widen it."""
+    monkeypatch.setattr(E, "GLINTS", glints)
+    img = _water(n=90, colour=(25, 75, 115))
+    truth = np.zeros((90, 90), bool)
+    truth[39:51, 15:75] = True
+    img[truth] = (120, 80, 50)
+    _glitter(img, 0, n=120, avoid=truth)
+    m = object_mask(np.clip(img, 0, 255).astype(np.uint8))
+    near = np.zeros_like(truth)
+    near[38:52, 14:76] = True  # a pixel's slack round the pier
+    hit = (m & truth).sum() / truth.sum()
+    extra = (m & ~near).sum() / truth.sum()
+    assert (hit > 0.95 and extra < 0.02) == ok
+
+
+def test_a_white_buoy_among_glints_is_kept():
+    """A speck on the crop's very centre is the object, however glint-like (a small white buoy)."""
+    img = _water(n=40, colour=(25, 75, 115))
+    buoy = np.zeros((40, 40), bool)
+    buoy[18:22, 18:22] = True
+    img[buoy] = (240, 240, 235)
+    zone = np.zeros_like(buoy)
+    zone[15:25, 15:25] = True  # glints round it, not on it
+    _glitter(img, 1, n=25, avoid=zone)
+    m = object_mask(np.clip(img, 0, 255).astype(np.uint8))
+    assert (m & buoy).sum() == buoy.sum() and m.sum() < 2 * buoy.sum()
