@@ -80,7 +80,10 @@ def test_library_benchmark_reports_category_confusion_by_pixels():
         def embed(self, images, gsds):
             return np.zeros((len(images), 4), np.float32)
 
-        def search(self, vecs, k=1, category=None):
+        def category_prior(self, images, gsds):
+            return None  # no category head for this stand-in library
+
+        def search(self, vecs, k=1, category=None, prior=None):
             if category is not None:  # the within-category search of the matched categories
                 return [[("car", 0.9)]]
             return [next(answers) for _ in range(len(vecs))]

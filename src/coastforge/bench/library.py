@@ -17,6 +17,11 @@ and the matcher itself (embedding + shape fit + size,
 (models repeated with slightly different real sizes, so every one is rendered) x 6 views (plus the query-like
 views of its small assets, see ``LibraryConfig.query_view_gsds_m``, and the crowded views of its cars and
 boats, ``LibraryConfig.crowded_views``), rendered, embedded and indexed.
+
+Searches without a category weigh the embedding's category vote by the category head
+(``coastforge.assets.category_net``, ``Library.CATEGORY_PRIOR_BETA``). The head was trained on renders of the
+starter kit at seeds 100 and up (``coastforge.train.category_data``): these queries (seeds 0-9, synthetic
+seeds 0-2) are new views of the same assets, not new assets; the real crops are neither.
 """
 
 from __future__ import annotations
@@ -134,7 +139,7 @@ def real_queries(data: Path = SHARED_DATA) -> tuple[list, str]:
 def real_category(lib, queries) -> dict:
     """Top-1 category of real crops searched without a category (what ``library query`` prints first)."""
     vecs = lib.embed([q[0] for q in queries], [q[1] for q in queries])
-    hits = lib.search(vecs, k=1)
+    hits = lib.search(vecs, k=1, prior=lib.category_prior([q[0] for q in queries], [q[1] for q in queries]))
     matrix: dict = defaultdict(lambda: defaultdict(int))
     for q, h in zip(queries, hits):
         matrix[q[3]][lib.asset(h[0][0]).category if h else "none"] += 1
@@ -200,7 +205,10 @@ def retrieval(lib, queries, seeds: Sequence[int] | None = None) -> dict:
     vecs = lib.embed([q[0] for q in queries], [q[1] for q in queries])
     t_embed = time.perf_counter() - t0
     t0 = time.perf_counter()
-    hits = lib.search(vecs, k=1)
+    prior = lib.category_prior([q[0] for q in queries], [q[1] for q in queries])
+    t_prior = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    hits = lib.search(vecs, k=1, prior=prior)
     t_search = time.perf_counter() - t0
     per_cat = defaultdict(lambda: [0, 0, 0])
     per_seed = defaultdict(lambda: [0, 0, 0])
@@ -257,8 +265,10 @@ def retrieval(lib, queries, seeds: Sequence[int] | None = None) -> dict:
                                for c, v in sorted(by_px_cat.items())},
         "per_seed": {str(k): {"queries": v[0], "top1_asset": round(v[1] / v[0], 4),
                               "top1_category": round(v[2] / v[0], 4)} for k, v in sorted(per_seed.items())},
-        "ms_per_query": round(1000 * (t_embed + t_search) / n, 3),
+        "ms_per_query": round(1000 * (t_embed + t_prior + t_search) / n, 3),
         "ms_embed_per_query": round(1000 * t_embed / n, 3),
+        "ms_category_head_per_query": round(1000 * t_prior / n, 3),
+        "category_head": prior is not None,
         "top_confusions": dict(sorted(confusions.items(), key=lambda t: -t[1])[:10]),
     }
 
