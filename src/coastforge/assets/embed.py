@@ -218,6 +218,13 @@ def object_mask(rgb: np.ndarray, work_px: int = 72) -> np.ndarray:
     return cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR) >= 0.5
 
 
+def _ring_clutter(ring: np.ndarray) -> tuple[float, np.ndarray]:
+    """The share of a crop's ring pixels (N x 3 Lab) farther than ``CLUTTER_DL`` from the ring's median
+    colour, and that median."""
+    med = np.median(ring, 0)
+    return float((np.linalg.norm(ring - med, axis=1) > CLUTTER_DL).mean()), med
+
+
 def _glint_mask(lab: np.ndarray, edge: np.ndarray) -> np.ndarray | None:
     """Sun glints on water (bright, near-neutral specks a few pixels across, see ``GLINT_DL``) or None
     when the crop's ring shows none. Glints joined to an object's outline made a pier or a bus on
@@ -227,9 +234,7 @@ def _glint_mask(lab: np.ndarray, edge: np.ndarray) -> np.ndarray | None:
     L = lab[:, :, 0]
     med = float(np.median(L[edge]))
     bright = (L > med + GLINT_DL) & (np.hypot(lab[:, :, 1], lab[:, :, 2]) < GLINT_CHROMA)
-    ring = lab[edge]
-    if float(bright[edge].mean()) < GLINT_RING_SHARE or float(
-            (np.linalg.norm(ring - np.median(ring, 0), axis=1) > CLUTTER_DL).mean()) > GLINT_MAX_CLUTTER:
+    if float(bright[edge].mean()) < GLINT_RING_SHARE or _ring_clutter(lab[edge])[0] > GLINT_MAX_CLUTTER:
         return None
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (GLINT_PX, GLINT_PX))
     tophat = L - cv2.morphologyEx(L, cv2.MORPH_OPEN, k)
@@ -647,9 +652,7 @@ class DefaultEmbedder:
         """The crop's surroundings, as two unit codes: the share of its ring unlike the ring's median colour
         (neighbours, parked cars or boats in berths, cut the ring of a crowded crop; an isolated object's ring
         is plain background), and that median colour, faded in with the share (see ``BG_FULL``)."""
-        ring = lab[_crop_ring(*lab.shape[:2])]
-        med = np.median(ring, 0)
-        share = float((np.linalg.norm(ring - med, axis=1) > CLUTTER_DL).mean())
+        share, med = _ring_clutter(lab[_crop_ring(*lab.shape[:2])])
         clutter = _rbf(share, 0.0, 1.0, CLUTTER_BINS, CLUTTER_SIGMA)
         colour = np.concatenate([_rbf(float(med[0]), 0.0, 100.0, 11), _rbf(float(med[1]), -30.0, 30.0, 13),
                                  _rbf(float(med[2]), -30.0, 30.0, 13)])

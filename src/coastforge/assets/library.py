@@ -467,11 +467,16 @@ def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: f
             side = int(max(QUERY_MIN_PX, math.ceil(size * QUERY_PAD / g - 1e-6) + 4))
             if side > CROWD_MAX_PX:
                 continue
-            for _ in range(n_crowd):
-                crowd, centre = crowd_mesh(mesh, category, dims_m, crng)
-                img, meta = _random_lit_view(crowd, g, side, bg, crng, centre)
-                out.append((img, {**meta, "crowded": True}))
+            out.extend(crowded_view(mesh, category, dims_m, g, side, bg, crng) for _ in range(n_crowd))
     return out
+
+
+def crowded_view(mesh, category: str, dims_m: Sequence[float], gsd: float, side: int, background: str, rng):
+    """One view of the asset between copies of itself (``crowd_mesh``), centred on it, under a random
+    lighting and yaw drawn from ``rng``: (image, meta dict)."""
+    crowd, centre = crowd_mesh(mesh, category, dims_m, rng)
+    img, meta = _random_lit_view(crowd, gsd, side, background, rng, centre)
+    return img, {**meta, "crowded": True}
 
 
 def _random_lit_view(mesh, gsd: float, side: int, background: str, rng, centre_xy=None):

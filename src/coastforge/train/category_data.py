@@ -26,8 +26,9 @@ SYNTH_PRESETS = ("marina", "pier_parking", "beach", "lake_harbor")
 
 
 def _pack(out: Path, crops: list[tuple[np.ndarray, float, str]]) -> int:
-    from ..fsio import atomic_write_bytes
     import io
+
+    from ..fsio import atomic_write_bytes
 
     buf = io.BytesIO()
     np.savez_compressed(buf, x=np.array([net_image(c) for c, _g, _c in crops], np.uint8),
@@ -62,6 +63,7 @@ def crowded(lib, seeds: list[int]) -> list:
                 side = int(math.ceil(size * 1.5 / gsd)) + 4
                 if side > MAX_QUERY_PX:
                     gsd, side = size * 1.5 / (MAX_QUERY_PX - 4), MAX_QUERY_PX
+                # as library.crowded_view, with a coin for the background between the crowd and the view
                 crowd, centre = crowd_mesh(mesh, a.category, a.dims_m, rng)
                 bg = "ground" if a.category == "vehicle" else "water"
                 if rng.random() < 0.25:  # now and then the other way round
