@@ -1,0 +1,438 @@
+"""Real-photograph benchmark (DESIGN.md §5 "Real photographs"): ``python -m coastforge.bench.real
+[--only seg|det] [--split all|train|val] [--limit N] [--segment-backend B] [--detect-backend B]
+[--with-classmap] [--preset P] [--set KEY=VALUE] [--json PATH] [--verbose]``.
+
+Segmentation: ``real/landcover_dubai`` at a nominal 0.6 m/px, water IoU and a coarse mIoU (water / paved /
+vegetation / bare; building and unlabeled ignored, a rocks prediction is wrong everywhere); the DOTA marina
+against ``tests/data/marina_p0861_classes.json`` (8-class mIoU, water IoU).
+
+Detection: ``real/ships_aerial`` (images with >= 3 boats, GSD = 10 m / median labelled long side, derived
+from the labels because the set does not record it) and ``real/cars_munich`` (0.13 m/px): recall and
+detection precision, a prediction matching a label when its centre lies inside the label box grown by 25 %,
+one-to-one by Hungarian assignment on centre distance. DOTA marina (oriented labels): boats matched as in
+``bench.detection`` (gate = half the labelled length), orientation RMSE, harbor structures hit by a pier box.
+
+Train and validation images (``coastforge.realdata``'s fixed split) are always reported apart; the DOTA
+marina is evaluation-only (never trained on) and is measured unless ``--split train``. Backends default to
+the preset's, as ``coastforge generate`` uses them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .. import realdata as rd
+from ..classes import ASPHALT, DIRT, GRASS, N_CLASSES, ROCKS, SAND, SIDEWALK, TREES, WATER
+
+DUBAI_GSD_M = 0.6  # nominal (DESIGN.md §5); the set does not record it
+MARINA_GSD_M = 0.2  # DOTA marina estimate (../shared/data/README.md), as bench.detection uses
+GROW = 1.25
+MIN_SHIP_LABELS = 3
+N_WORST = 5
+
+# our 8 classes -> coarse code (0 water, 1 paved, 2 vegetation, 3 bare); rocks has no coarse class: it goes to
+# a separate "other" column so that it is wrong wherever the truth is one of the four
+N_COARSE = len(rd.COARSE)
+OTHER = N_COARSE
+COARSE_OF_CLASS = np.full(N_CLASSES, OTHER, np.int64)
+for _ids, _code in (((WATER,), 0), ((ASPHALT, SIDEWALK), 1), ((GRASS, TREES), 2), ((SAND, DIRT), 3)):
+    COARSE_OF_CLASS[list(_ids)] = _code
+assert COARSE_OF_CLASS[ROCKS] == OTHER
+
+
+# ------------------------------------------------------------------------------------------ helpers
+
+def default_config(segment_backend: str | None = None, detect_backend: str | None = None,
+                   preset: str = "default", sets: list[str] | tuple[str, ...] = ()):
+    """The config ``coastforge generate`` would use (preset + ``--set``), with optional backend overrides."""
+    from ..config import load_config
+
+    cfg = load_config(preset, sets=list(sets))
+    if segment_backend:
+        cfg = dataclasses.replace(cfg, segment=dataclasses.replace(cfg.segment, backend=segment_backend))
+    if detect_backend:
+        cfg = dataclasses.replace(cfg, detect=dataclasses.replace(cfg.detect, backend=detect_backend))
+    return cfg
+
+
+def _ratio(a: float, b: float) -> float:
+    return float(a / b) if b else float("nan")
+
+
+def _select(items: list, split: str, limit: int | None, is_val: Callable[[Any], bool]) -> list:
+    """Items of ``split``; with ``limit``, alternate train and validation items so both are measured."""
+    if split not in ("all", "train", "val"):
+        raise ValueError(f"split must be all, train or val, got {split!r}")
+    train = [it for it in items if not is_val(it)] if split != "val" else []
+    val = [it for it in items if is_val(it)] if split != "train" else []
+    if limit is None:
+        return train + val
+    out = []
+    for k in range(max(len(train), len(val))):
+        out += [lst[k] for lst in (train, val) if k < len(lst)]
+    return out[:max(0, int(limit))]
+
+
+def _skipped(name: str, path: Path) -> dict:
+    return {"set": name, "skipped": f"{path} not found"}
+
+
+# ------------------------------------------------------------------------------------------ matching
+
+def match_centres_in_boxes(pred_xy: np.ndarray, boxes: np.ndarray,
+                           grow: float = GROW) -> list[tuple[int, int]]:
+    """One-to-one (pred_idx, label_idx) pairs: a prediction may match a label only when its centre lies inside
+    the label's box (x0, y0, x1, y1) grown by ``grow`` about its centre; among those, Hungarian assignment on
+    the distance to the box centre (the most pairs first, then the least total distance)."""
+    from scipy.optimize import linear_sum_assignment
+
+    p = np.asarray(pred_xy, np.float64).reshape(-1, 2)
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if len(p) == 0 or len(b) == 0:
+        return []
+    c = (b[:, :2] + b[:, 2:]) / 2.0
+    half = np.abs(b[:, 2:] - b[:, :2]) * (grow / 2.0)
+    d = p[:, None, :] - c[None, :, :]
+    ok = np.all(np.abs(d) <= half[None, :, :], axis=2)
+    dist = np.hypot(d[..., 0], d[..., 1])
+    # a forbidden pair costs more than any sum of allowed ones, so the assignment first maximises the pairs
+    big = 1.0 + dist[ok].sum() * 2.0 if ok.any() else 1.0
+    cost = np.where(ok, dist, big)
+    ri, ci = linear_sum_assignment(cost)
+    return [(int(i), int(j)) for i, j in zip(ri, ci) if ok[i, j]]
+
+
+# ------------------------------------------------------------------------------------------ segmentation
+
+def coarse_confusion(pred_ids: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(4, 5) pixel counts: rows the coarse truth (water, paved, vegetation, bare), columns our prediction
+    mapped to coarse plus "other" (rocks). Truth building (254) and unlabeled (255) pixels are left out."""
+    if pred_ids.shape != truth.shape:
+        raise ValueError(f"prediction {pred_ids.shape} and truth {truth.shape} differ in shape")
+    m = truth < N_COARSE
+    p = COARSE_OF_CLASS[np.clip(pred_ids[m].astype(np.int64), 0, N_CLASSES - 1)]
+    t = truth[m].astype(np.int64)
+    k = N_COARSE + 1
+    return np.bincount(t * k + p, minlength=N_COARSE * k).reshape(N_COARSE, k)
+
+
+def coarse_scores(cm: np.ndarray) -> dict:
+    """Per-class IoU (None when neither truth nor prediction holds it), water IoU and mIoU over the coarse
+    classes present in the truth (NaN when none is)."""
+    cm = np.asarray(cm, np.int64)
+    inter = np.diag(cm[:, :N_COARSE]).astype(np.float64)
+    union = cm.sum(1) + cm[:, :N_COARSE].sum(0) - inter
+    iou = {n: (float(inter[c] / union[c]) if union[c] > 0 else None) for c, n in enumerate(rd.COARSE)}
+    present = [n for c, n in enumerate(rd.COARSE) if cm[c].sum() > 0]
+    miou = float(np.mean([iou[n] for n in present])) if present else float("nan")
+    water = iou["water"] if iou["water"] is not None else float("nan")
+    return {"iou": iou, "water_iou": water, "miou": miou, "present": present, "pixels": int(cm.sum())}
+
+
+def _worst(rows: list[dict], key: str, n: int = N_WORST) -> list[dict]:
+    ok = [r for r in rows if not r.get("na") and r.get(key) == r.get(key)]
+    return [{"name": r["name"], key: r[key]} for r in sorted(ok, key=lambda r: (r[key], r["name"]))[:n]]
+
+
+def seg_dubai(config=None, split: str = "all", limit: int | None = None) -> dict:
+    """Coarse land-cover figures on ``landcover_dubai`` (confusion pixel-summed per split)."""
+    import cv2
+
+    from ..io import read_image
+    from ..segmentation import segment
+
+    items = rd.dubai_items()
+    if not items:
+        return _skipped("landcover_dubai", rd.SHARED / "real" / "landcover_dubai")
+    cfg = config or default_config()
+    t0 = time.perf_counter()
+    rows, cms = [], {"train": np.zeros((N_COARSE, N_COARSE + 1), np.int64)}
+    cms["val"] = cms["train"].copy()
+    for name, img_path, mask_path, val in _select(items, split, limit, lambda it: it[3]):
+        image = read_image(img_path, gsd_m=DUBAI_GSD_M, config=cfg.io)
+        ids = segment(image, cfg).ids
+        truth = rd.dubai_coarse(rd.read_rgb(mask_path))
+        if truth.shape != ids.shape:  # the class map should be on the image grid; never compare misaligned
+            truth = cv2.resize(truth, (ids.shape[1], ids.shape[0]), interpolation=cv2.INTER_NEAREST)
+        cm = coarse_confusion(ids, truth)
+        cms["val" if val else "train"] += cm
+        s = coarse_scores(cm)
+        rows.append({"name": name, "split": "val" if val else "train", "water_iou": s["water_iou"],
+                     "miou": s["miou"], "iou": s["iou"]})
+    out: dict = {"set": "landcover_dubai", "gsd_m": DUBAI_GSD_M, "backend": cfg.segment.backend,
+                 "images": rows}
+    for sp in ("train", "val"):
+        n = sum(r["split"] == sp for r in rows)
+        out[sp] = {"images": n, **coarse_scores(cms[sp]), "confusion": cms[sp].tolist()}
+    out["worst"] = _worst(rows, "miou")
+    out["seconds"] = round(time.perf_counter() - t0, 2)
+    return out
+
+
+def seg_marina(config=None) -> dict:
+    """8-class mIoU and water IoU of the DOTA marina against the hand-drawn polygons."""
+    from ..io import read_image
+    from ..segmentation import segment
+    from .segmentation import MARINA_TRUTH, class_ious, rasterize_polygons
+
+    path = rd.SHARED / "aerial" / "marina_p0861" / "image.jpg"
+    if not path.is_file():
+        return _skipped("marina_p0861", path)
+    cfg = config or default_config()
+    spec = json.loads(MARINA_TRUTH.read_text(encoding="utf-8"))
+    t0 = time.perf_counter()
+    image = read_image(path, gsd_m=float(spec["gsd_m"]), config=cfg.io)
+    ids = segment(image, cfg).ids
+    res = class_ious(ids, rasterize_polygons(spec, ids.shape))
+    return {"set": "marina_p0861", "gsd_m": float(spec["gsd_m"]), "backend": cfg.segment.backend,
+            "miou": res["miou"], "water_iou": res["iou"]["water"], "accuracy": res["accuracy"],
+            "iou": res["iou"], "seconds": round(time.perf_counter() - t0, 2)}
+
+
+# ------------------------------------------------------------------------------------------ detection
+
+def _detect(image, cfg, with_classmap: bool):
+    """Detections and seconds, as ``coastforge detect`` (``--segment`` with ``with_classmap``) runs them."""
+    from .detection import _run
+
+    opts = {"segment_config": cfg.segment} if with_classmap else {}
+    return _run(image, cfg.detect.backend, cfg.detect, **opts)
+
+
+def _det_boxes(name: str, items: list, gsd_of: Callable[[Any], float], config, with_classmap: bool) -> dict:
+    """Recall / detection precision of the grown-box rule over axis-aligned labelled images."""
+    from ..errors import InputError
+    from ..io import read_image
+
+    cfg = config or default_config()
+    t0 = time.perf_counter()
+    rows = []
+    for it in items:
+        gsd = gsd_of(it)
+        row = {"name": it.name, "split": "val" if it.val else "train", "gsd_m": round(gsd, 4),
+               "labels": int(len(it.boxes))}
+        image = read_image(it.path, gsd_m=gsd, config=cfg.io)
+        try:
+            dets, dt = _detect(image, cfg, with_classmap)
+        except InputError as exc:  # e.g. the learned detector refuses > 1 m/px: say so, measure the others
+            rows.append({**row, "na": str(exc).split(";")[0]})
+            continue
+        preds = [d for d in dets if d.category == it.category]
+        xy = np.array([[d.cx_px, d.cy_px] for d in preds], np.float64).reshape(-1, 2)
+        m = len(match_centres_in_boxes(xy, it.boxes))
+        rows.append({**row, "preds": len(preds), "matched": m, "recall": _ratio(m, len(it.boxes)),
+                     "precision": _ratio(m, len(preds)), "seconds": round(dt, 3)})
+    out: dict = {"set": name, "category": items[0].category if items else None, "backend": cfg.detect.backend,
+                 "with_classmap": with_classmap, "images": rows}
+    for sp in ("train", "val"):
+        r = [x for x in rows if x["split"] == sp and not x.get("na")]
+        lab, pred, m = (sum(x[k] for x in r) for k in ("labels", "preds", "matched"))
+        out[sp] = {"images": len(r), "objects": lab, "preds": pred, "matched": m, "recall": _ratio(m, lab),
+                   "precision": _ratio(m, pred), "na_images": sum(x["split"] == sp and bool(x.get("na"))
+                                                                  for x in rows)}
+    gsds = [x["gsd_m"] for x in rows]
+    out["gsd_range_m"] = [min(gsds), max(gsds)] if gsds else None
+    out["worst"] = _worst(rows, "recall")
+    out["seconds"] = round(time.perf_counter() - t0, 2)
+    return out
+
+
+def det_ships(config=None, split: str = "all", limit: int | None = None, with_classmap: bool = False) -> dict:
+    """Boats on ``ships_aerial`` images with >= 3 labelled boats, GSD derived per image from the labels."""
+    items = [it for it in rd.ships_items() if len(it.boxes) >= MIN_SHIP_LABELS]
+    if not items:
+        return _skipped("ships_aerial", rd.SHARED / "real" / "ships_aerial")
+    items = _select(items, split, limit, lambda it: it.val)
+    out = _det_boxes("ships_aerial", items, lambda it: rd.ships_gsd(it.boxes), config, with_classmap)
+    out["gsd_rule"] = ("10 m / median labelled long side, clipped to [0.15, 1.2] m/px "
+                       "(derived from the labels)")
+    return out
+
+
+def det_munich(config=None, split: str = "all", limit: int | None = None,
+               with_classmap: bool = False) -> dict:
+    """Vehicles (car, truck, bus, minibus) on ``cars_munich`` at 0.13 m/px."""
+    items = rd.munich_items()
+    if not items:
+        return _skipped("cars_munich", rd.SHARED / "real" / "cars_munich")
+    items = _select(items, split, limit, lambda it: it.val)
+    return _det_boxes("cars_munich", items, lambda _it: rd.MUNICH_GSD_M, config, with_classmap)
+
+
+def det_marina(config=None, with_classmap: bool = False) -> dict:
+    """DOTA marina: boats (bench.detection's matching: gate = half the labelled length) with orientation RMSE,
+    the grown-box rule on the labels' axis-aligned boxes for comparison, and harbor structures hit."""
+    from shapely.geometry import Point, Polygon
+
+    from ..io import read_image
+    from .detection import Score, match, piers_found, read_dota_yolo
+
+    folder = rd.SHARED / "aerial" / "marina_p0861"
+    if not (folder / "image.jpg").is_file():
+        return _skipped("marina_p0861", folder)
+    cfg = config or default_config()
+    t0 = time.perf_counter()
+    image = read_image(folder / "image.jpg", gsd_m=MARINA_GSD_M, config=cfg.io)
+    dets, dt = _detect(image, cfg, with_classmap)
+    lab = read_dota_yolo(folder / "labels_yolo_obb.txt", image.grid.width_px, image.grid.height_px)
+    ships = [t for c, t in lab if c == "ship"]
+    harbors = [t for c, t in lab if c == "harbor"]
+    boats = [d for d in dets if d.category == "boat"]
+    s = Score("marina_p0861 boats", gsd_m=MARINA_GSD_M)
+    match(ships, boats, s)
+    aabb = np.array([[*t.corners.min(0), *t.corners.max(0)] for t in ships], np.float64).reshape(-1, 4)
+    grown = len(match_centres_in_boxes(np.array([[d.cx_px, d.cy_px] for d in boats]).reshape(-1, 2), aabb))
+    # detections name pier boxes pier_walkway / pier_finger (coastforge.classes.DETECTION_CATEGORIES)
+    piers = [d for d in dets if d.category.startswith("pier")]
+    pier_polys = [Polygon(d.corners_px()) for d in piers]
+    hit = 0
+    for h in harbors:
+        poly = Polygon(h.corners)
+        hit += any(poly.contains(Point(d.cx_px, d.cy_px)) or poly.intersects(pp)
+                   for d, pp in zip(piers, pier_polys))
+    return {"set": "marina_p0861", "backend": cfg.detect.backend, "with_classmap": with_classmap,
+            "gsd_m": MARINA_GSD_M, "objects": s.n_truth, "preds": s.n_pred, "matched": s.matched,
+            "recall": s.recall, "precision": s.precision, "orient_rmse_deg": s.orient_rmse,
+            "grown_box": {"matched": grown, "recall": _ratio(grown, len(ships)),
+                          "precision": _ratio(grown, len(boats))},
+            "harbors": len(harbors), "harbors_hit": int(hit), "pier_boxes": len(piers),
+            "harbors_found_bench_detection": piers_found(harbors, dets),
+            "detect_seconds": round(dt, 2), "seconds": round(time.perf_counter() - t0, 2)}
+
+
+# ------------------------------------------------------------------------------------------ printing
+
+def _f(v, nd: int = 3) -> str:
+    return "  -  " if v is None or v != v else f"{v:.{nd}f}"
+
+
+def print_seg_dubai(r: dict, verbose: bool = False) -> None:
+    print(f"landcover_dubai (segment {r['backend']}, nominal {r['gsd_m']} m/px): {r['seconds']:.1f} s")
+    print(f"  {'split':5s} {'images':>6s} {'waterIoU':>8s} {'mIoU':>6s}   "
+          + " ".join(f"{n:>10s}" for n in rd.COARSE))
+    for sp in ("train", "val"):
+        s = r[sp]
+        print(f"  {sp:5s} {s['images']:6d} {_f(s['water_iou']):>8s} {_f(s['miou']):>6s}   "
+              + " ".join(f"{_f(s['iou'][n]):>10s}" for n in rd.COARSE))
+    if verbose:
+        for x in r["images"]:
+            print(f"    {x['name']:28s} {x['split']:5s} water {_f(x['water_iou'])} mIoU {_f(x['miou'])}")
+    print("  worst: " + ", ".join(f"{w['name']} {_f(w['miou'], 2)}" for w in r["worst"]))
+
+
+def print_seg_marina(r: dict) -> None:
+    print(f"marina_p0861 (segment {r['backend']}, {r['gsd_m']} m/px, DOTA: evaluation only): "
+          f"mIoU {_f(r['miou'])}, "
+          f"water IoU {_f(r['water_iou'])}  {r['seconds']:.1f} s")
+
+
+def print_det_boxes(r: dict, verbose: bool = False) -> None:
+    lo_hi = r["gsd_range_m"]
+    gsd = "" if lo_hi is None else (f"{lo_hi[0]:.2f} m/px" if lo_hi[0] == lo_hi[1]
+                                    else f"GSD {lo_hi[0]:.2f}-{lo_hi[1]:.2f} m/px from labels")
+    cm = ", with class map" if r["with_classmap"] else ""
+    print(f"{r['set']} ({r['category']}, detect {r['backend']}{cm}, {gsd}): {r['seconds']:.1f} s")
+    print(f"  {'split':5s} {'images':>6s} {'objects':>7s} {'preds':>6s} {'recall':>6s} {'prec':>6s}  n/a")
+    for sp in ("train", "val"):
+        s = r[sp]
+        print(f"  {sp:5s} {s['images']:6d} {s['objects']:7d} {s['preds']:6d} {_f(s['recall']):>6s} "
+              f"{_f(s['precision']):>6s}  {s['na_images']}")
+    if verbose:
+        for x in r["images"]:
+            if x.get("na"):
+                print(f"    {x['name']:12s} {x['split']:5s} gsd {x['gsd_m']:.3f}  n/a ({x['na']})")
+            else:
+                print(f"    {x['name']:12s} {x['split']:5s} gsd {x['gsd_m']:.3f}  "
+                      f"{x['matched']:3d}/{x['labels']:<3d} "
+                      f"preds {x['preds']:3d}  recall {_f(x['recall'])} prec {_f(x['precision'])}")
+    print("  worst: " + ", ".join(f"{w['name']} {_f(w['recall'], 2)}" for w in r["worst"]))
+
+
+def print_det_marina(r: dict) -> None:
+    cm = ", with class map" if r["with_classmap"] else ""
+    g = r["grown_box"]
+    print(f"marina_p0861 boats (detect {r['backend']}{cm}, {r['gsd_m']} m/px, DOTA: evaluation only): "
+          f"{r['seconds']:.1f} s")
+    print(f"  objects {r['objects']} preds {r['preds']} recall {_f(r['recall'])} prec {_f(r['precision'])} "
+          f"orient RMSE {_f(r['orient_rmse_deg'], 2)} deg (gate half the labelled length)")
+    print(f"  grown-box rule on the labels' axis-aligned boxes: recall {_f(g['recall'])} "
+          f"prec {_f(g['precision'])}")
+    print(f"  harbor structures hit by a pier box: {r['harbors_hit']}/{r['harbors']} "
+          f"({r['pier_boxes']} pier boxes; "
+          f"bench.detection's cover rule {r['harbors_found_bench_detection']}/{r['harbors']})")
+
+
+def _jsonable(v):
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None  # JSON has no NaN
+    return v
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m coastforge.bench.real", description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=("seg", "det"), default=None, help="one part (default both)")
+    ap.add_argument("--segment-backend", default=None, help="default: the preset's, as generate uses")
+    ap.add_argument("--detect-backend", default=None, help="default: the preset's, as generate uses")
+    ap.add_argument("--with-classmap", action="store_true",
+                    help="segment first and detect with the class map, as generate does")
+    ap.add_argument("--split", choices=("all", "train", "val"), default="all")
+    ap.add_argument("--limit", type=int, default=None, help="at most N images per set (quick runs)")
+    ap.add_argument("--preset", default="default")
+    ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--json", type=Path, default=None, help="write all figures here")
+    ap.add_argument("--verbose", action="store_true",
+                    help="per-image rows (ships: the GSD derived per image)")
+    a = ap.parse_args(argv)
+    cfg = default_config(a.segment_backend, a.detect_backend, a.preset, a.sets)
+    print(f"data: {rd.SHARED}; split {a.split}" + (f", at most {a.limit} images per set" if a.limit else ""))
+    results: dict = {"split": a.split, "limit": a.limit, "segment_backend": cfg.segment.backend,
+                     "detect_backend": cfg.detect.backend, "with_classmap": a.with_classmap}
+
+    def show(r: dict, printer: Callable[[dict], None]) -> dict:
+        if "skipped" in r:
+            print(f"skipped: {r['set']}: {r['skipped']}")
+        else:
+            printer(r)
+        return r
+
+    if a.only in (None, "seg"):
+        t0 = time.perf_counter()
+        dubai = seg_dubai(cfg, a.split, a.limit)
+        seg = {"landcover_dubai": show(dubai, lambda r: print_seg_dubai(r, a.verbose))}
+        if a.split != "train":
+            seg["marina_p0861"] = show(seg_marina(cfg), print_seg_marina)
+        seg["seconds"] = round(time.perf_counter() - t0, 2)
+        print(f"segmentation part: {seg['seconds']:.1f} s\n")
+        results["seg"] = seg
+    if a.only in (None, "det"):
+        t0 = time.perf_counter()
+        pr = lambda r: print_det_boxes(r, a.verbose)  # noqa: E731
+        det = {"ships_aerial": show(det_ships(cfg, a.split, a.limit, a.with_classmap), pr),
+               "cars_munich": show(det_munich(cfg, a.split, a.limit, a.with_classmap), pr)}
+        if a.split != "train":
+            det["marina_p0861"] = show(det_marina(cfg, a.with_classmap), print_det_marina)
+        det["seconds"] = round(time.perf_counter() - t0, 2)
+        print(f"detection part: {det['seconds']:.1f} s")
+        results["det"] = det
+    if a.json is not None:
+        a.json.write_text(json.dumps(_jsonable(results), indent=1), encoding="utf-8")
+        print(f"figures written to {a.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,98 @@
+"""coastforge.bench.real: the grown-box matching rule, the coarse land-cover mapping, and one quick run on the
+real sets (skipped without ../shared/data)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from coastforge import realdata
+from coastforge.bench.real import (coarse_confusion, coarse_scores, default_config, det_munich,
+                                   match_centres_in_boxes, seg_dubai)
+from coastforge.classes import ASPHALT, GRASS, ROCKS, SAND, WATER
+
+BOX = np.array([[100.0, 100.0, 140.0, 120.0]])  # 40 x 20, centre (120, 110); grown: x 95..145, y 97.5..122.5
+
+
+def test_centre_just_inside_grown_box_matches():
+    assert match_centres_in_boxes(np.array([[144.9, 110.0]]), BOX) == [(0, 0)]
+    assert match_centres_in_boxes(np.array([[120.0, 97.6]]), BOX) == [(0, 0)]
+
+
+def test_centre_just_outside_grown_box_does_not_match():
+    assert match_centres_in_boxes(np.array([[145.1, 110.0]]), BOX) == []
+    assert match_centres_in_boxes(np.array([[120.0, 122.6]]), BOX) == []
+    # inside the grown box along x but not along y: both sides must hold
+    assert match_centres_in_boxes(np.array([[144.0, 123.0]]), BOX) == []
+
+
+def test_one_to_one_when_two_predictions_share_a_label():
+    pairs = match_centres_in_boxes(np.array([[121.0, 110.0], [118.0, 111.0]]), BOX)
+    assert len(pairs) == 1
+    assert pairs == [(0, 0)]  # the closer centre wins
+
+
+def test_hungarian_picks_the_globally_best_pairing():
+    # label boxes A (x 0..40, grown -5..45) and B (x 40..60, grown 37.5..62.5). Pred 0 lies in both,
+    # nearest to B's centre; pred 1 lies in B only. Nearest-first greedy (pred 0 -> B) leaves one label
+    # unmatched; the best assignment matches both.
+    boxes = np.array([[0.0, 0.0, 40.0, 20.0], [40.0, 0.0, 60.0, 20.0]])
+    preds = np.array([[44.0, 10.0], [60.0, 10.0]])
+    assert sorted(match_centres_in_boxes(preds, boxes)) == [(0, 0), (1, 1)]
+    # both pairings allowed: the smaller total distance wins
+    boxes = np.array([[0.0, 0.0, 20.0, 20.0], [10.0, 0.0, 30.0, 20.0]])  # centres x 10 and 20
+    preds = np.array([[19.0, 10.0], [11.0, 10.0]])
+    assert sorted(match_centres_in_boxes(preds, boxes)) == [(0, 1), (1, 0)]
+
+
+def test_empty_inputs_match_nothing():
+    assert match_centres_in_boxes(np.zeros((0, 2)), BOX) == []
+    assert match_centres_in_boxes(np.array([[120.0, 110.0]]), np.zeros((0, 4))) == []
+
+
+def test_coarse_mapping_rocks_wrong_building_ignored():
+    truth = np.array([[0, 0, 1, 2, 3, realdata.BUILDING, realdata.COARSE_IGNORE]], np.uint8)
+    pred = np.array([[WATER, ROCKS, ASPHALT, GRASS, SAND, ROCKS, ROCKS]], np.uint8)
+    cm = coarse_confusion(pred, truth)
+    assert cm.shape == (4, 5)
+    assert cm.sum() == 5  # building and unlabeled left out
+    assert cm[0, 4] == 1  # rocks on water: the separate "other" column
+    s = coarse_scores(cm)
+    assert s["water_iou"] == pytest.approx(0.5)  # 1 right of 2 water pixels, rocks is not water
+    assert s["iou"]["paved"] == s["iou"]["vegetation"] == s["iou"]["bare"] == 1.0
+    assert s["miou"] == pytest.approx((0.5 + 3.0) / 4)
+
+
+def test_coarse_mapping_merges_our_classes():
+    truth = np.array([[1, 1, 2, 2, 3, 3]], np.uint8)
+    pred = np.array([[1, 2, 3, 4, 5, 7]], np.uint8)  # asphalt, sidewalk, grass, trees, dirt, sand
+    s = coarse_scores(coarse_confusion(pred, truth))
+    assert s["present"] == ["paved", "vegetation", "bare"]
+    assert s["miou"] == 1.0 and np.isnan(s["water_iou"])
+
+
+@pytest.mark.shared_data
+def test_quick_real_runs():
+    if not realdata.SHARED.is_dir():
+        pytest.skip(f"../shared/data not found at {realdata.SHARED}: "
+                    "real-imagery tests need it beside the repo")
+    # the default learned segmenter runs the net and then falls back to classical on these photos (~20 s on a
+    # busy 2-core machine): the test checks the benchmark's bookkeeping, so the classical backend suffices
+    seg = seg_dubai(default_config(segment_backend="classical"), split="val", limit=1)
+    assert "skipped" not in seg
+    assert seg["val"]["images"] == 1 and seg["train"]["images"] == 0
+    assert len(seg["images"]) == 1 and seg["images"][0]["name"].split("/")[0] in realdata.DUBAI_VAL_TILES
+    assert 0.0 <= seg["val"]["miou"] <= 1.0 and 0.0 <= seg["val"]["water_iou"] <= 1.0
+    assert seg["backend"] == "classical" and len(seg["worst"]) == 1
+    assert seg["val"]["pixels"] > 0 and np.asarray(seg["val"]["confusion"]).sum() == seg["val"]["pixels"]
+
+    det = det_munich(limit=1)
+    assert "skipped" not in det
+    rows = det["images"]
+    assert len(rows) == 1 and not rows[0].get("na")
+    assert det["train"]["images"] + det["val"]["images"] == 1
+    r = rows[0]
+    assert r["labels"] > 0 and r["gsd_m"] == pytest.approx(realdata.MUNICH_GSD_M)
+    assert 0 <= r["matched"] <= min(r["labels"], r["preds"])
+    assert 0.0 <= r["recall"] <= 1.0
+    assert r["preds"] == 0 or 0.0 <= r["precision"] <= 1.0
