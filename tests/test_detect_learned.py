@@ -54,6 +54,37 @@ def test_decode_swaps_a_wide_box_and_checks_shapes():
         decode(peaks, reg[:5], 0.3)
 
 
+def test_axis_aligned_real_labels_teach_centres_only():
+    """A real label (axis-aligned box, 7th column 0) supervises the heatmap and the offset, not the size
+    nor the axis: its box is not the object's oriented extent."""
+    from coastforge.train.train_detector import make_targets
+
+    box = np.array([[0, 80.0, 80.0, 40.0, 20.0, 0.0, 0.0]])
+    heat, _reg, wmask, amask, smask = make_targets(box, 160)
+    assert heat[0].max() == 1.0 and wmask.sum() >= 1
+    assert amask.sum() == 0 and smask.sum() == 0
+    r, c = np.unravel_index(heat[0].argmax(), heat[0].shape)
+    assert heat[0, r, c + 2] == pytest.approx(heat[0, r + 2, c], rel=1e-6)  # round, not along the box
+
+
+def test_unlabelled_classes_are_not_taught_as_background():
+    """``ships_aerial`` labels boats only: its parked cars must not teach the vehicle heatmap that cars
+    are background, so that class's loss is left out for such images."""
+    torch = pytest.importorskip("torch")
+    from coastforge.train.detector_model import N_CLASSES, N_OUT
+    from coastforge.train.train_detector import losses
+
+    out = torch.zeros(1, N_OUT, 8, 8)
+    out[:, 1] = 4.0  # the network is sure of a vehicle everywhere
+    heat = torch.zeros(1, N_CLASSES, 8, 8)
+    reg, m = torch.zeros(1, 8, 8, 8), torch.zeros(1, 8, 8)
+    all_lab = torch.ones(1, N_CLASSES, dtype=torch.bool)
+    boats_only = torch.tensor([[True, False, False]])
+    l_all = float(losses(torch, out, heat, reg, m, m, m, all_lab)[1]["heat"])
+    l_boats = float(losses(torch, out, heat, reg, m, m, m, boats_only)[1]["heat"])
+    assert l_all > 10 * max(l_boats, 1e-3)
+
+
 def test_training_targets_decode_back():
     """What training asks the network for at a box decodes to that box (targets and decoder agree),
     also after the rotation used as augmentation."""
@@ -67,11 +98,11 @@ def test_training_targets_decode_back():
     # the rotated front direction is the image direction of the new yaw
     fx, fy = frames.direction_px(57.0)
     assert frames.yaw_from_direction_px(*(M[:, :2] @ [fx, fy])) == pytest.approx(moved[0, 5], abs=1e-6)
-    heat, reg, wmask, amask = make_targets(moved, 160)
+    heat, reg, wmask, amask, smask = make_targets(moved, 160)
     pooled = cv2.dilate(heat.transpose(1, 2, 0), np.ones((3, 3), np.uint8)).transpose(2, 0, 1)
     peaks = np.where(heat >= pooled, heat, 0)
     rows = decode(peaks, reg, 0.99)
-    assert len(rows) == 1 and wmask.sum() >= 1 and amask.sum() == wmask.sum()
+    assert len(rows) == 1 and wmask.sum() >= 1 and amask.sum() == wmask.sum() == smask.sum()
     c, _s, cx, cy, L, W, yaw, _conf = rows[0]
     assert (cx, cy) == pytest.approx(tuple(moved[0, 1:3]), abs=1e-3)
     assert (L, W) == pytest.approx((36.0 * 1.1, 11.0 * 1.1), rel=1e-3)
@@ -225,7 +256,7 @@ def test_training_samples_levels_from_several_data_folders(tmp_path):
     assert [it["seed"] for it in s.items] == [1000, 2000]
     assert sorted(int(v[0, 0, 0]) for v in s.images.values()) == [50, 100]
     crop, boxes = s.sample()
-    assert crop.shape == (48, 48, 3) and boxes.shape[1] == 6
+    assert crop.shape == (48, 48, 3) and boxes.shape[1] == 7 and (boxes[:, 6] == 1).all()  # oriented synthetic boxes
     with pytest.raises(InputError, match="no training index"):
         Sampler([tmp_path / "A", tmp_path / "C"], 48, np.random.default_rng(0))
 
@@ -267,3 +298,16 @@ def test_tta_axes_average_the_turned_crops_axes_and_keep_the_front(monkeypatch):
     assert np.degrees(np.angle(mean)) / 2 == pytest.approx(20.5, abs=0.1)
     assert out[0].yaw_deg == pytest.approx(-159.5, abs=1.0)
     assert (out[0].cx_px, out[0].length_px, out[0].heading_known) == (48.0, 20.0, True)
+
+
+def test_label_mask_teaches_unlabelled_classes_only_near_labelled_objects():
+    from coastforge.train.detector_model import N_CLASSES
+    from coastforge.train.train_detector import label_mask
+
+    boats_only = np.array([True, False, False])
+    boxes = np.array([[0, 80.0, 80.0, 20.0, 8.0, 0.0, 0.0]])
+    m = label_mask(boxes, boats_only, 160)
+    assert m.shape == (N_CLASSES, 40, 40)
+    assert (m[0] == 1).all()  # boats: everywhere
+    assert m[1, 20, 20] == 1 and m[1, 5, 5] == 0  # vehicles: on the boat, not far from it
+    assert (label_mask(boxes, np.ones(3, bool), 160) == 1).all()

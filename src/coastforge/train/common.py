@@ -13,6 +13,7 @@ import json
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 from pathlib import Path
 
 from ..errors import InputError
@@ -95,3 +96,85 @@ def data_main(argv: list[str] | None, description: str, default_seeds: str,
     a = ap.parse_args(argv)
     kw = {"mix": a.mix} if mix_option else {}
     generate(a.out, parse_seeds(a.seeds), minutes=a.minutes, **kw)
+
+
+def init_from_onnx(torch, net, onnx_path: Path, make_input: Callable[[int], Any], batches: int = 24) -> float:
+    """Start ``net`` from its exported ONNX model (e.g. a shipped model, whose torch checkpoint is not
+    kept); ``make_input(n)`` returns a batch of n training inputs as ``net`` takes them. The export
+    folded each BatchNorm into its convolution; the folded weights are loaded and
+    each BatchNorm is set to the statistics of its convolution's output on training crops, with scale and
+    shift chosen so that the network computes exactly what the ONNX model does (checked: the largest
+    output difference on a crop is returned). Training then goes on from the same function."""
+    import onnx
+    from onnx import numpy_helper
+    from torch import nn
+
+    model = onnx.load(str(onnx_path))
+    inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
+    onnx_convs = [n for n in model.graph.node if n.op_type == "Conv"]
+    order: list[nn.Conv2d] = []
+    hooks = [m.register_forward_hook(lambda m, _i, _o: order.append(m))
+             for m in net.modules() if isinstance(m, nn.Conv2d)]
+    net.eval()
+    with torch.no_grad():
+        net(torch.zeros(1, 3, 64, 64))
+    for h in hooks:
+        h.remove()
+    if len(order) != len(onnx_convs):
+        raise InputError(f"{onnx_path} has {len(onnx_convs)} convolutions, this network {len(order)}: "
+                         "not a detector of this architecture")
+    bn_after: dict[nn.Conv2d, nn.BatchNorm2d] = {}
+    for seq in net.modules():
+        if isinstance(seq, nn.Sequential):
+            mods = list(seq)
+            for a, b in zip(mods, mods[1:]):
+                if isinstance(a, nn.Conv2d) and isinstance(b, nn.BatchNorm2d):
+                    bn_after[a] = b
+    folded_bias: dict[nn.Conv2d, torch.Tensor] = {}
+    with torch.no_grad():
+        for conv, node in zip(order, onnx_convs):
+            w = torch.from_numpy(inits[node.input[1]].copy())
+            b = (torch.from_numpy(inits[node.input[2]].copy()) if len(node.input) > 2
+                 else torch.zeros(w.shape[0]))
+            if tuple(w.shape) != tuple(conv.weight.shape):
+                raise InputError(f"{onnx_path}: convolution {node.name} has weights {tuple(w.shape)}, "
+                                 f"expected {tuple(conv.weight.shape)}")
+            conv.weight.copy_(w)
+            if conv in bn_after:  # identity BatchNorm that adds the folded bias: exact in eval mode
+                bn = bn_after[conv]
+                bn.weight.fill_(1.0)
+                bn.bias.copy_(b)
+                bn.running_mean.zero_()
+                bn.running_var.fill_(1.0 - bn.eps)
+                folded_bias[conv] = b
+            else:
+                conv.bias.copy_(b)
+    # the statistics each BatchNorm will see in training: per-channel mean and variance of its input
+    sums: dict[nn.Conv2d, list] = {c: [0.0, 0.0, 0] for c in bn_after}
+
+    def record(m, _i, o):
+        s = sums[m]
+        s[0] = s[0] + o.sum((0, 2, 3))
+        s[1] = s[1] + (o * o).sum((0, 2, 3))
+        s[2] += o.numel() // o.shape[1]
+
+    hooks = [c.register_forward_hook(record) for c in bn_after]
+    with torch.no_grad():
+        for _ in range(batches):
+            net(make_input(16))
+    for h in hooks:
+        h.remove()
+    with torch.no_grad():
+        x = make_input(1)
+        before = net(x)
+        for conv, bn in bn_after.items():
+            s0, s1, n = sums[conv]
+            mu = s0 / n
+            var = (s1 / n - mu * mu).clamp(min=1e-8)
+            bn.running_mean.copy_(mu)
+            bn.running_var.copy_(var)
+            bn.weight.copy_(torch.sqrt(var + bn.eps))
+            bn.bias.copy_(mu + folded_bias[conv])
+        after = net(x)
+    net.train()
+    return float((after - before).abs().max())

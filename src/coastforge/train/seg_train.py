@@ -1,16 +1,29 @@
-"""Train the learned segmenter on coastforge's own synthetic renders and export it to ONNX.
+"""Train the learned segmenter on coastforge's own synthetic renders and real labelled photos, and export
+it to ONNX.
 
     python -m coastforge.train.seg_data --out /tmp/segdata --seeds 2000:2240      # ~12 min, rendering
-    python -m coastforge.train.seg_train --data /tmp/segdata --out /tmp/segnet --steps 2400
+    python -m coastforge.train.seg_train --data /tmp/segdata --out /tmp/segnet --steps 2400 \
+        --real dubai,ships,cars --init SYNTHETIC_ONLY.onnx
+
+``--real`` mixes in the training splits of real sets in ``../shared/data`` (never the validation groups
+of ``coastforge.realdata``): ``dubai`` (land-cover masks), ``ships`` and ``cars`` (boxes as weak labels:
+a moored or anchored boat is water in our class map, a car stands on pavement; all other pixels of those
+photos are unlabelled). Real labels are coarser than our eight classes (road, vegetation, unpaved land,
+building), so they are learned as *sets*: a vegetation pixel must be grass or trees, a road or roof
+pavement (asphalt or sidewalk), unpaved land sand or dirt; the loss is the negative log of the
+probability summed over the set (for an exact label, plain cross-entropy).
+The card (``segmenter.json``) lists every data set the model saw, with licence and attribution.
 
 writes ``OUT/segmenter.onnx`` and ``OUT/segmenter.json`` (copy both to ``coastforge/data/models/`` to
 ship them). One CPU thread (``torch.set_num_threads(1)``), seeded through ``coastforge.rng``; the real
-marina photo, when present, is only *evaluated* at checkpoints (printed), never trained on.
+marina photo (DOTA: evaluation only) and the Dubai validation tiles are only *evaluated* at checkpoints
+(printed), never trained on.
 
 Appearance randomisation is heavy on purpose, since real photos do not look like our renders: global
 brightness/contrast/gamma/saturation/channel gains, per-class recolouring (water blue, green, olive or
-brown; grass and trees dry or lush; pavement warm or cold), blur, sensor noise, JPEG, and a random scale
-around the working GSD (so a wrong ``--gsd`` of ±30 % still works).
+brown; grass and trees dry or lush; pavement warm or cold), haze, blur, sensor noise, JPEG, and a random
+scale around the working GSD (so a wrong ``--gsd`` of ±30 % still works; the real tiles, whose GSD is
+only known to be about 0.5-1 m/px, get a wider range).
 """
 
 from __future__ import annotations
@@ -30,6 +43,100 @@ from ..rng import stage_rng, stage_seed
 
 WORK_GSD_M = 0.3  # the network's working resolution (metres per pixel)
 FORMAT = "coastforge.learned_segmenter/1"
+IGNORE = 255
+# label codes of the training rasters: 0-7 our classes; 8-10 sets of them (coarse real labels)
+SET_PAVED, SET_VEGETATION, SET_BARE, REAL_WATER = 8, 9, 10, 11
+N_CODES = 12  # REAL_WATER: water of a real photo (weighted as a set, not by the renders' water share)
+DUBAI_NOMINAL_GSD_M = 0.6  # ../shared/data/README.md: "about 0.5-1 m/px"; DESIGN.md §5 uses 0.6
+
+
+def label_sets() -> np.ndarray:
+    """(N_CODES, 8) bool: which of our classes each training label code allows."""
+    from ..classes import CLASS_IDS
+
+    t = np.zeros((N_CODES, N_CLASSES), bool)
+    t[np.arange(N_CLASSES), np.arange(N_CLASSES)] = True
+    for code, names in ((SET_PAVED, ("asphalt", "sidewalk")), (SET_VEGETATION, ("grass", "trees")),
+                        (SET_BARE, ("sand", "dirt")), (REAL_WATER, ("water",))):
+        for n in names:
+            t[code, CLASS_IDS[n]] = True
+    return t
+
+
+# data sets a model may have seen, for its card (licences from ../shared/data/README.md)
+DATASETS = {
+    "synthetic": {"name": "coastforge synthetic levels (coastforge.train.seg_data)", "licence": "Apache-2.0 (this project)",
+                  "attribution": "rendered by coastforge from its own starter kit"},
+    "dubai": {"name": "Semantic segmentation of aerial imagery (Dubai), training tiles "
+                      "(../shared/data/real/landcover_dubai minus the validation tiles)",
+              "licence": "CC0 1.0 as reported by the publisher (not verified)",
+              "attribution": "Humans in the Loop / MBRSC; via github.com/Kaarti22/satellite-imagery (4943c528)"},
+    "ships": {"name": "Ship Detection from Aerial Images (Kaggle andrewmvd), training groups: boat boxes as weak "
+                      "water labels (moored and anchored boats are water in the class map), the rest unlabelled",
+              "licence": "CC0 1.0 as reported (not verified); the imagery's own terms may also apply",
+              "attribution": "andrewmvd; via github.com/urielFamien95/RESNET_101 (66af054f)"},
+    "cars": {"name": "KIT AIS vehicle data (Munich crops), training crops: vehicle boxes as weak pavement labels "
+                     "(parked and driving cars stand on pavement), the rest unlabelled",
+             "licence": "CC BY 3.0", "attribution": "KIT IPF; via github.com/jekhor/aerial-cars-dataset (d2ed927f)"},
+}
+REAL_SETS = ("dubai", "ships", "cars")
+# share of each batch from each real set when it is used (the rest: renders)
+REAL_SHARES = {"dubai": 0.3, "ships": 0.1, "cars": 0.1}
+# scale jitter of each pool (its GSD is known to this factor at best): renders, Dubai (nominal GSD), weak sets
+SCALE_RANGE = {"synthetic": (0.75, 1.33), "dubai": (0.5, 1.6), "ships": (0.6, 1.5), "cars": (0.8, 1.25)}
+
+
+def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Weak labels from the training split of a real box set at ``work_gsd_m``: ``ships`` boat boxes are
+    REAL_WATER, ``cars`` vehicle boxes SET_PAVED, every other pixel IGNORE."""
+    from .. import realdata
+
+    if which == "ships":
+        items = [(it, realdata.ships_gsd(it.boxes)) for it in realdata.ships_items() if len(it.boxes)]
+        code = REAL_WATER
+    else:
+        items = [(it, realdata.MUNICH_GSD_M) for it in realdata.munich_items()]
+        code = SET_PAVED
+    out = []
+    for it, gsd in items:
+        if it.val:
+            continue
+        rgb = realdata.read_rgb(it.path)
+        s = gsd / work_gsd_m
+        h, w = rgb.shape[:2]
+        nw, nh = max(16, int(round(w * s))), max(16, int(round(h * s)))
+        lab = np.full((nh, nw), IGNORE, np.uint8)
+        for x0, y0, x1, y1 in it.boxes * s:
+            lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = code
+        out.append((cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR), lab))
+    if not out:
+        raise InputError(f"no {which} training images under {realdata.SHARED}; --real {which} needs ../shared/data")
+    return out
+
+
+def load_dubai(work_gsd_m: float = WORK_GSD_M, val: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Dubai training (or validation) tiles at ``work_gsd_m`` (from the nominal 0.6 m/px) with label codes:
+    water REAL_WATER, road and roofs SET_PAVED, vegetation SET_VEGETATION, unpaved land SET_BARE, unlabeled IGNORE."""
+    from .. import realdata
+
+    lut = np.full(256, IGNORE, np.uint8)
+    lut[0], lut[1], lut[2], lut[3] = REAL_WATER, SET_PAVED, SET_VEGETATION, SET_BARE
+    lut[realdata.BUILDING] = SET_PAVED  # roofs count as paved for now (never water or vegetation)
+    s = DUBAI_NOMINAL_GSD_M / work_gsd_m
+    out = []
+    for _name, img, mask, is_val in realdata.dubai_items():
+        if is_val != val:
+            continue
+        rgb = realdata.read_rgb(img)
+        codes = lut[realdata.dubai_coarse(realdata.read_rgb(mask))]
+        h, w = codes.shape
+        nw, nh = int(round(w * s)), int(round(h * s))
+        out.append((cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_LINEAR if s > 1 else cv2.INTER_AREA),
+                    cv2.resize(codes, (nw, nh), interpolation=cv2.INTER_NEAREST)))
+    if not out:
+        raise InputError(f"no Dubai tiles under {realdata.SHARED / 'real' / 'landcover_dubai'}; "
+                         "--real dubai needs ../shared/data beside the project")
+    return out
 
 
 def load_levels(data_dir: Path, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -77,6 +184,13 @@ def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.nd
     mean = img.mean()
     img = mean + (img - mean) * rng.uniform(0.6, 1.4) + rng.uniform(-35, 35)  # contrast, brightness
     img = 255.0 * (np.clip(img, 0, 255) / 255.0) ** rng.uniform(0.7, 1.5)  # gamma
+    if rng.random() < 0.25:  # haze: a veil of one bluish-grey colour
+        a = rng.uniform(0.1, 0.45)
+        img = img * (1 - a) + a * rng.uniform(150, 235, 3).astype(np.float32)
+    if rng.random() < 0.15:  # hue turn: water and vegetation of colours nobody rendered
+        hsv = cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_RGB2HSV)
+        hsv[..., 0] = (hsv[..., 0].astype(np.int16) + int(rng.integers(-15, 16))) % 180
+        img = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB).astype(np.float32)
     if rng.random() < 0.3:
         img = cv2.GaussianBlur(img, (0, 0), rng.uniform(0.4, 1.3))
     if rng.random() < 0.5:
@@ -89,10 +203,10 @@ def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.nd
 
 
 def class_centres(levels, rng: np.random.Generator, per_level: int = 300) -> list[np.ndarray]:
-    """Per class present: (level index, row, col) of up to ``per_level`` random pixels of each level."""
-    out: list[list[np.ndarray]] = [[] for _ in range(N_CLASSES)]
+    """Per label code present: (level index, row, col) of up to ``per_level`` random pixels of each level."""
+    out: list[list[np.ndarray]] = [[] for _ in range(N_CODES)]
     for i, (_, ids) in enumerate(levels):
-        for c in range(N_CLASSES):
+        for c in range(N_CODES):
             rr, cc = np.nonzero(ids == c)
             if len(rr):
                 k = rng.choice(len(rr), min(per_level, len(rr)), replace=False)
@@ -101,46 +215,59 @@ def class_centres(levels, rng: np.random.Generator, per_level: int = 300) -> lis
 
 
 def sample_batch(levels, batch: int, crop: int, rng: np.random.Generator,
-                 centres: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """A batch of augmented crops: (N, 3, crop, crop) float32 in [-0.5, 0.5], (N, crop, crop) int64."""
+                 centres: list[np.ndarray] | None = None,
+                 pools: list[tuple[list, list | None, tuple[float, float], float]] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """A batch of augmented crops: (N, 3, crop, crop) float32 in [-0.5, 0.5], (N, crop, crop) int64 label
+    codes. ``pools``: more sources (levels, centres, scale range, share of the batch); the renders
+    ``levels`` take the rest."""
     xs = np.empty((batch, 3, crop, crop), np.float32)
     ys = np.empty((batch, crop, crop), np.int64)
+    pools = list(pools or [])
+    rest = max(0.0, 1.0 - sum(p[3] for p in pools))
+    allp = [(levels, centres, SCALE_RANGE["synthetic"], rest)] + pools
+    w = np.array([p[3] for p in allp], np.float64)
     for b in range(batch):
-        s = math.exp(rng.uniform(math.log(0.75), math.log(1.33)))  # GSD error / scale jitter
-        side = int(round(crop / s))
-        if centres is not None and rng.random() < 0.75:
-            # class-balanced: centre the crop on a pixel of a uniformly drawn class (water fills most
-            # levels; dirt, rocks and sand are rare)
-            pts = centres[int(rng.integers(len(centres)))]
-            li_, r, c = pts[int(rng.integers(len(pts)))]
-            rgb, ids = levels[li_]
-            r0, c0 = r - side // 2 + int(rng.integers(-side // 4, side // 4 + 1)), c - side // 2
-        else:
-            rgb, ids = levels[int(rng.integers(len(levels)))]
-            r0 = c0 = None
-        h, w = ids.shape
-        if h < side or w < side:
-            pad = max(side - h, side - w, 0)
-            rgb = cv2.copyMakeBorder(rgb, 0, pad, 0, pad, cv2.BORDER_REFLECT)
-            ids = cv2.copyMakeBorder(ids, 0, pad, 0, pad, cv2.BORDER_REFLECT)
-            h, w = ids.shape
-        if r0 is None:
-            r0, c0 = int(rng.integers(h - side + 1)), int(rng.integers(w - side + 1))
-        r0, c0 = int(np.clip(r0, 0, h - side)), int(np.clip(c0, 0, w - side))
-        ci = rgb[r0:r0 + side, c0:c0 + side]
-        li = ids[r0:r0 + side, c0:c0 + side]
-        if side != crop:
-            ci = cv2.resize(ci, (crop, crop), interpolation=cv2.INTER_AREA if side > crop else cv2.INTER_LINEAR)
-            li = cv2.resize(li, (crop, crop), interpolation=cv2.INTER_NEAREST)
-        k = int(rng.integers(4))
-        ci, li = np.rot90(ci, k), np.rot90(li, k)
-        if rng.random() < 0.5:
-            ci, li = ci[:, ::-1], li[:, ::-1]
-        ci, li = np.ascontiguousarray(ci), np.ascontiguousarray(li)
-        img = augment(ci, li, rng)
-        xs[b] = img.transpose(2, 0, 1) / 255.0 - 0.5
-        ys[b] = li
+        lv, ce, (slo, shi), _ = allp[int(rng.choice(len(allp), p=w / w.sum()))]
+        xs[b], ys[b] = _one_crop(lv, crop, rng, ce, slo, shi)
     return xs, ys
+
+
+def _one_crop(levels, crop: int, rng: np.random.Generator, centres, slo: float, shi: float):
+    """One augmented crop (3, crop, crop) float32 and its label codes (crop, crop)."""
+    s = math.exp(rng.uniform(math.log(slo), math.log(shi)))  # GSD error / scale jitter
+    side = int(round(crop / s))
+    if centres is not None and rng.random() < 0.75:
+        # class-balanced: centre the crop on a pixel of a uniformly drawn class (water fills most
+        # levels; dirt, rocks and sand are rare)
+        pts = centres[int(rng.integers(len(centres)))]
+        li_, r, c = pts[int(rng.integers(len(pts)))]
+        rgb, ids = levels[li_]
+        r0, c0 = r - side // 2 + int(rng.integers(-side // 4, side // 4 + 1)), c - side // 2
+    else:
+        rgb, ids = levels[int(rng.integers(len(levels)))]
+        r0 = c0 = None
+    h, w = ids.shape
+    if h < side or w < side:
+        pad = max(side - h, side - w, 0)
+        rgb = cv2.copyMakeBorder(rgb, 0, pad, 0, pad, cv2.BORDER_REFLECT)
+        ids = cv2.copyMakeBorder(ids, 0, pad, 0, pad, cv2.BORDER_REFLECT)
+        h, w = ids.shape
+    if r0 is None:
+        r0, c0 = int(rng.integers(h - side + 1)), int(rng.integers(w - side + 1))
+    r0, c0 = int(np.clip(r0, 0, h - side)), int(np.clip(c0, 0, w - side))
+    ci = rgb[r0:r0 + side, c0:c0 + side]
+    li = ids[r0:r0 + side, c0:c0 + side]
+    if side != crop:
+        ci = cv2.resize(ci, (crop, crop), interpolation=cv2.INTER_AREA if side > crop else cv2.INTER_LINEAR)
+        li = cv2.resize(li, (crop, crop), interpolation=cv2.INTER_NEAREST)
+    k = int(rng.integers(4))
+    ci, li = np.rot90(ci, k), np.rot90(li, k)
+    if rng.random() < 0.5:
+        ci, li = ci[:, ::-1], li[:, ::-1]
+    ci, li = np.ascontiguousarray(ci), np.ascontiguousarray(li)
+    img = augment(ci, li, rng)
+    return img.transpose(2, 0, 1) / 255.0 - 0.5, li
 
 
 def class_weights(levels) -> np.ndarray:
@@ -153,6 +280,28 @@ def class_weights(levels) -> np.ndarray:
     w = np.ones(N_CLASSES)
     w[present] = np.sqrt(np.median(freq[present]) / freq[present])
     return np.clip(w, 0.3, 4.0).astype(np.float32)
+
+
+# loss weight of each real label set (doubling vegetation's did not keep lawns from water: see the card)
+SET_WEIGHTS = {SET_PAVED: 1.0, SET_VEGETATION: 1.0, SET_BARE: 1.0, REAL_WATER: 1.0}
+
+
+def code_weights(levels) -> np.ndarray:
+    """Loss weight per label code: our classes by ``class_weights`` of the renders, the sets of real
+    labels by ``SET_WEIGHTS``."""
+    sets = [SET_WEIGHTS[c] for c in range(N_CLASSES, N_CODES)]
+    return np.r_[class_weights(levels), np.asarray(sets, np.float32)].astype(np.float32)
+
+
+def set_loss(torch, logits, y, sets, weights):
+    """Negative log of the probability summed over each pixel's allowed classes (plain cross-entropy for
+    an exact label), weighted by label code; IGNORE pixels are left out."""
+    valid = y != IGNORE
+    yc = torch.where(valid, y, torch.zeros_like(y))
+    allowed = sets[yc].permute(0, 3, 1, 2)  # (N, 8, H, W)
+    nll = torch.logsumexp(logits, 1) - torch.logsumexp(logits.masked_fill(~allowed, -1e4), 1)
+    w = weights[yc] * valid
+    return (nll * w).sum() / w.sum().clamp(min=1e-6)
 
 
 def export_onnx(net, path: Path) -> Path:
@@ -198,7 +347,8 @@ def _eval_marina(onnx_path: Path, meta: dict) -> str:
 
 
 def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch: int = 12, crop: int = 128,
-          lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400) -> Path:
+          lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400,
+          real: tuple[str, ...] = (), init: str | Path | None = None) -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -213,30 +363,64 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     t0 = time.time()
     levels = load_levels(data_dir)
     seeds = [int(it["seed"]) for it in json.loads((data_dir / "index.json").read_text())["items"]]
-    weights = class_weights(levels)
+    weights = code_weights(levels)
     centres = class_centres(levels, stage_rng(seed, "train", "seg", "centres"))
-    print(f"{len(levels)} levels loaded in {time.time() - t0:.0f} s; class weights "
+    shares = parse_real(tuple(real))
+    pools, counts = [], {}
+    for name, share in shares.items():
+        lv = load_dubai() if name == "dubai" else load_boxes_as_labels(name)
+        counts[name] = len(lv)
+        pools.append((lv, class_centres(lv, stage_rng(seed, "train", "seg", f"{name}-centres")), SCALE_RANGE[name],
+                      share))
+    print(f"{len(levels)} levels" + "".join(f" + {n} {k} images" for k, n in counts.items())
+          + f" loaded in {time.time() - t0:.0f} s; class weights "
           + " ".join(f"{n}={w:.2f}" for n, w in zip(CLASS_NAMES, weights)), flush=True)
     net = build_segmenter(N_CLASSES, width)
+    if init is not None:
+        from .common import init_from_onnx
+
+        init = Path(init)
+        if not init.is_file():
+            raise InputError(f"--init {init} does not exist; give a segmenter.onnx written by this command")
+
+        def make_input(n: int):
+            x, _ = sample_batch(levels, n, crop, rng, centres, pools)
+            return torch.from_numpy(x)
+
+        diff = init_from_onnx(torch, net, init, make_input, batches=12)
+        print(f"started from {init} (largest output difference to the ONNX model {diff:.2e})", flush=True)
     n_params = sum(p.numel() for p in net.parameters())
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=steps, pct_start=0.1)
-    loss_fn = torch.nn.CrossEntropyLoss(weight=torch.from_numpy(weights))
+    sets_t = torch.from_numpy(label_sets())
+    weights_t = torch.from_numpy(weights)
     onnx_path, meta_path = out / "segmenter.onnx", out / "segmenter.json"
+    cmd = (f"python -m coastforge.train.seg_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1}"
+           f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
+           f"--batch {batch} --crop {crop} --width {width} --seed {seed} --lr {lr}")
+    if real:
+        cmd += " --real " + ",".join(f"{k}:{v:g}" for k, v in shares.items())
+    if init is not None:
+        cmd += f" --init {init.name}"
+    datasets = [DATASETS["synthetic"]] + [{**DATASETS[k], "images": n, "batch_share": shares[k]}
+                                          for k, n in counts.items()]
+    # real photos at ~0.4-1.2 m/px (Dubai with its scale jitter, the ship photos) widen the range of GSDs the
+    # network may be trusted with; renders alone cover ~0.04-0.6 m/px
+    gsd_range = [0.04, 1.2] if real else [0.04, 0.6]
     meta = {"format": FORMAT, "classes": list(CLASS_NAMES), "work_gsd_m": WORK_GSD_M, "multiple": 16,
+            "gsd_range_m": gsd_range,
             "input": "RGB 0..1, NCHW", "output": "logits (1, 8, H, W)",
+            "datasets": datasets,
             "training": {"seed": seed, "steps": steps, "batch": batch, "crop_px": crop, "lr": lr, "width": width,
                          "threads": 1, "levels": len(levels), "params": n_params,
-                         "data_seeds": [min(seeds), max(seeds)],
-                         "command": f"python -m coastforge.train.seg_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1}"
-                                    f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
-                                    f"--batch {batch} --crop {crop} --width {width} --seed {seed}"}}
+                         "data_seeds": [min(seeds), max(seeds)], "command": cmd,
+                         "init": str(init.name) if init is not None else None}}
     t_train = time.time()
     run = 0.0
     for step in range(1, steps + 1):
-        x, y = sample_batch(levels, batch, crop, rng, centres)
+        x, y = sample_batch(levels, batch, crop, rng, centres, pools)
         logits = net(torch.from_numpy(x))
-        loss = loss_fn(logits, torch.from_numpy(y))
+        loss = set_loss(torch, logits, torch.from_numpy(y), sets_t, weights_t)
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -265,11 +449,32 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--width", type=int, default=16)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--eval-every", type=int, default=400)
+    ap.add_argument("--real", default="",
+                    help=f"comma list of real sets to mix in (training splits, ../shared/data): {', '.join(REAL_SETS)}; "
+                         "NAME:SHARE sets the share of each batch (default " +
+                         ", ".join(f"{k} {v}" for k, v in REAL_SHARES.items()) + ")")
+    ap.add_argument("--init", default=None, help="start from this exported segmenter.onnx")
     a = ap.parse_args(argv)
     if a.crop % 16:
         raise InputError(f"--crop {a.crop} must be a multiple of 16")
     train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
-          eval_every=a.eval_every)
+          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init)
+
+
+def parse_real(items: tuple[str, ...]) -> dict[str, float]:
+    """("dubai:0.5", "ships") -> {"dubai": 0.5, "ships": REAL_SHARES["ships"]}."""
+    out = {}
+    for it in items:
+        name, _, share = it.partition(":")
+        if name not in REAL_SETS:
+            raise InputError(f"--real {name!r}: the real sets are {', '.join(REAL_SETS)}")
+        try:
+            out[name] = float(share) if share else REAL_SHARES[name]
+        except ValueError:
+            raise InputError(f"--real {it!r}: the share after ':' must be a number") from None
+    if sum(out.values()) > 1.0:
+        raise InputError(f"--real shares add up to {sum(out.values()):g}; they must leave room for the renders (<= 1)")
+    return out
 
 
 if __name__ == "__main__":

@@ -10,20 +10,24 @@ re-run. ``--init`` continues from a ``detector.pt`` or from an exported ``detect
 shipped model, whose checkpoint is not kept: ``init_from_onnx`` rebuilds the BatchNorms the export folded).
 torch is a training-time extra (``pip install coastforge[train]``).
 
-The shipped model (``coastforge/data/models/detector.json`` records its lineage) was fine-tuned from the one
-before it (itself trained from scratch on ~200 benchmark-mix levels) on 1,500 levels:
+The shipped model (``coastforge/data/models/detector.json`` records its lineage and lists its data sets)
+was fine-tuned from the synthetic-only model before it on renders and the training split of the real box
+sets (``coastforge.realdata``; the validation groups are never written):
 
-    python -m coastforge.train.detector_data --out A --seeds 1000:2000 --mix training
-    python -m coastforge.train.detector_data --out B --seeds 2000:2500
+    python -m coastforge.train.detector_data --out S --seeds 1000:1400 --mix training
+    python -m coastforge.train.detector_real --out SHIPS --sets ships_aerial
+    python -m coastforge.train.detector_real --out CARS --sets cars_munich
     python -m coastforge.train.detector_data --out T --seeds 5000:5021
-    git show 8585ba5:src/coastforge/data/models/detector.onnx > previous.onnx
-    python -m coastforge.train.train_detector --out R --seed 4 --steps 13900 --lr 6e-4 --threads 1 \\
-        --data A --data B --init previous.onnx
+    git show 9c27fa8:src/coastforge/data/models/detector.onnx > previous.onnx
+    python -m coastforge.train.train_detector --out R --seed 5 --minutes 35 --lr 8e-4 --threads 1 \
+        --batch 12 --crop 224 --data S --data SHIPS --data CARS --share 0.45 --share 0.35 --share 0.2 \
+        --init previous.onnx
     python -m coastforge.train.eval_detector --weights R/detector.onnx --tune T --write-meta
 
-(30 minutes on one core. The detection thresholds are tuned for F1 on levels 5000-5020, never on the
-benchmark's seeds 0-4 or the real photos. The data were made in six parallel runs, so a re-run samples the
-same levels in another order.)
+(35 minutes on one core, 11,529 steps; the time budget fixes the step count, so ``--steps 11529`` re-runs
+it exactly. Real boxes are axis-aligned: they teach centres and looks, not sizes along the hull nor
+headings, which still come from the renders. The detection thresholds are tuned for F1 on levels
+5000-5020, never on the benchmark's seeds 0-4 or the real photos.)
 """
 
 from __future__ import annotations
@@ -86,25 +90,33 @@ def photometric(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return out
 
 
-def make_targets(boxes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """CenterNet targets at stride 4: heat (C, h, w), regression (8, h, w), box mask and angle mask (h, w).
+def make_targets(boxes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """CenterNet targets at stride 4: heat (C, h, w), regression (8, h, w), offset mask, angle mask and size
+    mask (h, w).
 
     Centres are oriented Gaussians (elongated along the hull, so boats moored side by side keep
-    separate peaks); regression is supervised on the cells near each centre (the nearest object wins)."""
+    separate peaks); regression is supervised on the cells near each centre (the nearest object wins).
+    A box with a 7th column of 0 is an axis-aligned real label: its centre teaches the heatmap (a round
+    Gaussian as wide as the box's short side) and the offset, but neither its size nor its axis."""
     n = size // STRIDE
     heat = np.zeros((N_CLASSES, n, n), np.float32)
     reg = np.zeros((8, n, n), np.float32)
     wmask = np.zeros((n, n), np.float32)
     amask = np.zeros((n, n), np.float32)
+    smask = np.zeros((n, n), np.float32)
     owner = np.zeros((n, n), np.float32)
     jj, ii = np.meshgrid(np.arange(n) + 0.5, np.arange(n) + 0.5)
-    for c, cx, cy, L, W, yaw in boxes:
+    for row in boxes:
+        c, cx, cy, L, W, yaw = row[:6]
+        oriented = len(row) < 7 or row[6] > 0.5
         u, v = cx / STRIDE, cy / STRIDE
         if not (0 <= u < n and 0 <= v < n):
             continue
         t = math.radians(yaw)
         f = np.array([math.cos(t), -math.sin(t)])  # front in (col, row)
         sl, sw = max(0.6, L / STRIDE / 6.0), max(0.6, W / STRIDE / 6.0)
+        if not oriented:
+            sl = sw
         du, dv = jj - u, ii - v
         along = du * f[0] + dv * f[1]
         across = -du * f[1] + dv * f[0]
@@ -123,16 +135,23 @@ def make_targets(boxes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, 
         reg[4][sel], reg[5][sel] = math.cos(2 * t), math.sin(2 * t)
         reg[6][sel], reg[7][sel] = math.cos(t), math.sin(t)
         wmask[sel] = 1.0
-        amask[sel] = 0.0 if CLASSES[ci] == "buoy" else 1.0
-    return heat, reg, wmask, amask
+        smask[sel] = 1.0 if oriented else 0.0
+        amask[sel] = 0.0 if CLASSES[ci] == "buoy" or not oriented else 1.0
+    return heat, reg, wmask, amask, smask
 
 
 class Sampler:
     """Random augmented crops from the generated levels (re-reads the index as more levels appear)."""
 
-    def __init__(self, data_dirs: Path | list[Path], crop: int, rng: np.random.Generator):
-        """``data_dirs``: one folder of ``detector_data`` levels or several (their levels in that order)."""
+    def __init__(self, data_dirs: Path | list[Path], crop: int, rng: np.random.Generator,
+                 shares: list[float] | None = None):
+        """``data_dirs``: one folder of ``detector_data`` (or ``detector_real``) levels or several (their
+        levels in that order); ``shares``: the share of crops drawn from each folder (default: by its
+        number of images)."""
         self.dirs = [Path(d) for d in (data_dirs if isinstance(data_dirs, (list, tuple)) else [data_dirs])]
+        if shares is not None and (len(shares) != len(self.dirs) or min(shares) < 0 or sum(shares) <= 0):
+            raise InputError(f"--share needs one non-negative share per --data folder, got {shares}")
+        self.shares = shares
         self.crop, self.rng = crop, rng
         self.images: dict[str, np.ndarray] = {}
         self.items: list[dict] = []
@@ -151,16 +170,33 @@ class Sampler:
                     if bgr is None:
                         continue
                     self.images[path] = np.ascontiguousarray(bgr[:, :, ::-1])
-                    self.items.append({**it, "image": path})
+                    self.items.append({**it, "image": path, "dir": str(d)})
         if not self.items:
             where = ", ".join(map(str, self.dirs))
             raise InputError(f"the training indexes in {where} list no readable images")
 
+    def _pick(self) -> dict:
+        rng = self.rng
+        if self.shares is None:
+            return self.items[int(rng.integers(len(self.items)))]
+        p = np.asarray(self.shares, np.float64)
+        d = str(self.dirs[int(rng.choice(len(p), p=p / p.sum()))])
+        pool = [it for it in self.items if it["dir"] == d] or self.items
+        return pool[int(rng.integers(len(pool)))]
+
     def sample(self) -> tuple[np.ndarray, np.ndarray]:
+        """An augmented crop and its boxes (N, 7: class, cx, cy, length, width, yaw, oriented 0/1)."""
+        return self.sample_item()[:2]
+
+    def sample_item(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As ``sample``, plus which classes the crop's image has labels for (bool per class)."""
         rng, C = self.rng, self.crop
-        it = self.items[int(rng.integers(len(self.items)))]
+        it = self._pick()
         img = self.images[it["image"]]
         boxes = np.asarray(it["boxes"], np.float64).reshape(-1, 6)
+        boxes = np.c_[boxes, np.full(len(boxes), 0.0 if it.get("aligned") else 1.0)]
+        labelled = np.zeros(N_CLASSES, bool)
+        labelled[list(it.get("labelled", range(N_CLASSES)))] = True
         h, w = img.shape[:2]
         if len(boxes) and rng.random() < 0.75:  # most crops around an object (they are sparse)
             b = boxes[int(rng.integers(len(boxes)))]
@@ -180,24 +216,52 @@ class Sampler:
             if len(bx):
                 bx[:, 1] = C - bx[:, 1]
                 bx[:, 5] = (180.0 - bx[:, 5] + 180.0) % 360.0 - 180.0
-        return photometric(crop, rng), bx
+        return photometric(crop, rng), bx, labelled
 
 
 # ------------------------------------------------------------------------------------------ training
 
-def losses(torch, out, heat, reg, wmask, amask):
-    """CenterNet focal loss on the heatmaps + L1 on offsets, log sizes, axis and heading."""
+def label_mask(boxes: np.ndarray, labelled: np.ndarray, size: int, grow: float = 1.5) -> np.ndarray:
+    """(C, h, w) float mask of where each class's heatmap is supervised at stride 4: everywhere for the
+    classes the image has labels for; for the others only on and around the labelled objects (boxes grown
+    by ``grow``), so that a labelled boat also teaches "this is no vehicle" while the unlabelled cars of
+    the same photo are not taught as background."""
+    n = size // STRIDE
+    m = np.zeros((N_CLASSES, n, n), np.float32)
+    m[labelled] = 1.0
+    if labelled.all() or not len(boxes):
+        return m
+    near = np.zeros((n, n), np.uint8)
+    for row in boxes:
+        cx, cy, L, W = row[1] / STRIDE, row[2] / STRIDE, row[3] * grow / STRIDE, row[4] * grow / STRIDE
+        rect = ((float(cx), float(cy)), (float(max(L, 1.0)), float(max(W, 1.0))), -float(row[5]))
+        cv2.fillPoly(near, [np.round(cv2.boxPoints(rect)).astype(np.int32)], 1)
+    m[~labelled] = near
+    return m
+
+
+def losses(torch, out, heat, reg, wmask, amask, smask=None, labelled=None):
+    """CenterNet focal loss on the heatmaps (only where each class is labelled: ``labelled`` (N, C) bool,
+    or (N, C, h, w) float from ``label_mask``) + L1 on offsets, log sizes (where ``smask``), axis and
+    heading."""
     p = torch.sigmoid(out[:, :N_CLASSES]).clamp(1e-4, 1 - 1e-4)
-    pos = (heat >= 0.999).float()
+    if labelled is None:
+        lab = torch.ones_like(heat[:, :, :1, :1])
+    elif labelled.dim() == 2:
+        lab = labelled.float()[:, :, None, None]
+    else:
+        lab = labelled.float()
+    pos = (heat >= 0.999).float() * lab
     npos = pos.sum().clamp(min=1.0)
     lpos = -(torch.log(p) * (1 - p) ** 2 * pos).sum()
-    lneg = -(torch.log(1 - p) * p ** 2 * (1 - heat) ** 4 * (1 - pos)).sum()
+    lneg = -(torch.log(1 - p) * p ** 2 * (1 - heat) ** 4 * (1 - pos) * lab).sum()
     l_heat = (lpos + lneg) / npos
     r = out[:, N_CLASSES:]
     wm, am = wmask[:, None], amask[:, None]
-    nw, na = wm.sum().clamp(min=1.0), am.sum().clamp(min=1.0)
+    sm = wm if smask is None else smask[:, None]
+    nw, na, ns = wm.sum().clamp(min=1.0), am.sum().clamp(min=1.0), sm.sum().clamp(min=1.0)
     l_off = (torch.abs(r[:, 0:2] - reg[:, 0:2]) * wm).sum() / nw
-    l_size = (torch.abs(r[:, 2:4] - reg[:, 2:4]) * wm).sum() / nw
+    l_size = (torch.abs(r[:, 2:4] - reg[:, 2:4]) * sm).sum() / ns
     l_axis = (torch.abs(r[:, 4:6] - reg[:, 4:6]) * am).sum() / na
     l_head = (torch.abs(r[:, 6:8] - reg[:, 6:8]) * am).sum() / na
     total = l_heat + l_off + l_size + 2.0 * l_axis + l_head
@@ -223,89 +287,21 @@ def export_onnx(net, path: Path) -> Path:
 
 def init_from_onnx(torch, net, onnx_path: Path, sampler: "Sampler", batches: int = 24) -> float:
     """Start ``net`` from an exported ``detector.onnx`` (e.g. the shipped model, whose torch checkpoint is
-    not kept). The export folded each BatchNorm into its convolution; the folded weights are loaded and
-    each BatchNorm is set to the statistics of its convolution's output on training crops, with scale and
-    shift chosen so that the network computes exactly what the ONNX model does (checked: the largest
-    output difference on a crop is returned). Training then goes on from the same function."""
-    import onnx
-    from onnx import numpy_helper
-    from torch import nn
+    not kept): ``common.init_from_onnx`` on batches of training crops. Returns the largest output
+    difference to the ONNX model on a crop (checked: the network computes what the model does)."""
+    from .common import init_from_onnx as init
 
-    model = onnx.load(str(onnx_path))
-    inits = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
-    onnx_convs = [n for n in model.graph.node if n.op_type == "Conv"]
-    order: list[nn.Conv2d] = []
-    hooks = [m.register_forward_hook(lambda m, _i, _o: order.append(m))
-             for m in net.modules() if isinstance(m, nn.Conv2d)]
-    net.eval()
-    with torch.no_grad():
-        net(torch.zeros(1, 3, 64, 64))
-    for h in hooks:
-        h.remove()
-    if len(order) != len(onnx_convs):
-        raise InputError(f"{onnx_path} has {len(onnx_convs)} convolutions, this network {len(order)}: "
-                         "not a detector of this architecture")
-    bn_after: dict[nn.Conv2d, nn.BatchNorm2d] = {}
-    for seq in net.modules():
-        if isinstance(seq, nn.Sequential):
-            mods = list(seq)
-            for a, b in zip(mods, mods[1:]):
-                if isinstance(a, nn.Conv2d) and isinstance(b, nn.BatchNorm2d):
-                    bn_after[a] = b
-    folded_bias: dict[nn.Conv2d, torch.Tensor] = {}
-    with torch.no_grad():
-        for conv, node in zip(order, onnx_convs):
-            w = torch.from_numpy(inits[node.input[1]].copy())
-            b = (torch.from_numpy(inits[node.input[2]].copy()) if len(node.input) > 2
-                 else torch.zeros(w.shape[0]))
-            if tuple(w.shape) != tuple(conv.weight.shape):
-                raise InputError(f"{onnx_path}: convolution {node.name} has weights {tuple(w.shape)}, "
-                                 f"expected {tuple(conv.weight.shape)}")
-            conv.weight.copy_(w)
-            if conv in bn_after:  # identity BatchNorm that adds the folded bias: exact in eval mode
-                bn = bn_after[conv]
-                bn.weight.fill_(1.0)
-                bn.bias.copy_(b)
-                bn.running_mean.zero_()
-                bn.running_var.fill_(1.0 - bn.eps)
-                folded_bias[conv] = b
-            else:
-                conv.bias.copy_(b)
-    # the statistics each BatchNorm will see in training: per-channel mean and variance of its input
-    sums: dict[nn.Conv2d, list] = {c: [0.0, 0.0, 0] for c in bn_after}
+    def crops(n: int):
+        x = np.stack([sampler.sample()[0] for _ in range(n)])
+        return torch.from_numpy(x).permute(0, 3, 1, 2).float() / 255.0
 
-    def record(m, _i, o):
-        s = sums[m]
-        s[0] = s[0] + o.sum((0, 2, 3))
-        s[1] = s[1] + (o * o).sum((0, 2, 3))
-        s[2] += o.numel() // o.shape[1]
-
-    hooks = [c.register_forward_hook(record) for c in bn_after]
-    with torch.no_grad():
-        for _ in range(batches):
-            x = torch.from_numpy(np.stack([sampler.sample()[0] for _ in range(16)])).permute(0, 3, 1, 2)
-            net(x.float() / 255.0)
-    for h in hooks:
-        h.remove()
-    with torch.no_grad():
-        x = torch.from_numpy(sampler.sample()[0][None]).permute(0, 3, 1, 2).float()
-        before = net(x / 255.0)
-        for conv, bn in bn_after.items():
-            s0, s1, n = sums[conv]
-            mu = s0 / n
-            var = (s1 / n - mu * mu).clamp(min=1e-8)
-            bn.running_mean.copy_(mu)
-            bn.running_var.copy_(var)
-            bn.weight.copy_(torch.sqrt(var + bn.eps))
-            bn.bias.copy_(mu + folded_bias[conv])
-        after = net(x / 255.0)
-    net.train()
-    return float((after - before).abs().max())
+    return init(torch, net, onnx_path, crops, batches)
 
 
 def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path | list | None = None,
           steps: int | None = None, batch: int = 16, crop: int = 160, lr: float = 2e-3, width: int = 16,
-          threads: int = 1, data_minutes: float = 10.0, init: str | Path | None = None) -> dict:
+          threads: int = 1, data_minutes: float = 10.0, init: str | Path | None = None,
+          shares: list[float] | None = None) -> dict:
     from ..registry import require
 
     torch = require("torch", "train", "training the learned detector")
@@ -318,7 +314,7 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
 
         data_dir = out / "data"
         generate(data_dir, list(range(100 + seed * 1000, 100 + seed * 1000 + 1000)), minutes=data_minutes)
-    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"))
+    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"), shares)
     net = build_model(width)
     previous = None
     if init is not None:  # continue an earlier run (its settings are kept in the record)
@@ -345,14 +341,15 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
             break
         for g in opt.param_groups:  # short warm-up, then a cosine to 2 % of lr
             g["lr"] = lr * min(1.0, (step + 1) / 100) * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * frac)))
-        xs, ts = [], []
+        xs, ts, labs = [], [], []
         for _ in range(batch):
-            im, bx = sampler.sample()
+            im, bx, lab = sampler.sample_item()
             xs.append(im)
             ts.append(make_targets(bx, crop))
+            labs.append(label_mask(bx, lab, crop))
         x = torch.from_numpy(np.stack(xs)).permute(0, 3, 1, 2).float() / 255.0
-        heat, reg, wm, am = (torch.from_numpy(np.stack([t[k] for t in ts])) for k in range(4))
-        total, parts = losses(torch, net(x), heat, reg, wm, am)
+        heat, reg, wm, am, sm = (torch.from_numpy(np.stack([t[k] for t in ts])) for k in range(5))
+        total, parts = losses(torch, net(x), heat, reg, wm, am, sm, torch.from_numpy(np.stack(labs)))
         opt.zero_grad()
         total.backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
@@ -372,16 +369,22 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
             torch.save(net.state_dict(), out / "detector.pt")
     export_onnx(net, onnx_path)
     torch.save(net.state_dict(), out / "detector.pt")
+    synth = [it for it in sampler.items if "seed" in it]
+    datasets = [{"name": "coastforge synthetic levels (coastforge.train.detector_data)",
+                 "licence": "Apache-2.0 (this project)", "images": len(synth)}] if synth else []
+    for d in sampler.dirs:  # real sets (coastforge.train.detector_real) name themselves in their index
+        datasets += json.loads((d / "index.json").read_text()).get("datasets", [])
     meta = {
         "format": "coastforge.learned_detector/1",
+        "datasets": datasets,
         "classes": list(CLASSES), "work_gsd_m": WORK_GSD_M, "stride": STRIDE,
         "outputs": {"heat": "sigmoid centre heatmaps", "peaks": "heat at 3x3 local maxima, else 0",
                     "reg": "offset(2) log(len/4) log(wid/4) cos2t sin2t cos t sin t"},
         "training": {"seed": seed, "minutes": minutes, "steps": step, "batch": batch, "crop_px": crop,
                      "lr": lr, "width": width, "threads": threads, "data": ", ".join(map(str, sampler.dirs)),
-                     "levels": len(sampler.items),
-                     "presets": sorted({it["preset"] for it in sampler.items}),
-                     "seeds": [min(it["seed"] for it in sampler.items), max(it["seed"] for it in sampler.items)],
+                     "levels": len(synth), "real_images": len(sampler.items) - len(synth), "shares": shares,
+                     "presets": sorted({it["preset"] for it in synth}),
+                     "seeds": [min(it["seed"] for it in synth), max(it["seed"] for it in synth)] if synth else None,
                      "params": int(sum(p.numel() for p in net.parameters())),
                      "seconds": round(time.time() - t0, 1),
                      "init": str(init) if init is not None else None, "previous": previous},
@@ -405,10 +408,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--crop", type=int, default=160)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--lr", type=float, default=2e-3)
+    ap.add_argument("--share", type=float, action="append", default=None,
+                    help="share of crops from each --data folder, in their order (default: by image count)")
     ap.add_argument("--init", default=None,
                     help="start from this detector.pt or exported detector.onnx (continue a run)")
     a = ap.parse_args(argv)
-    train(a.out, a.seed, a.minutes, a.data, a.steps, a.batch, a.crop, lr=a.lr, threads=a.threads, init=a.init)
+    train(a.out, a.seed, a.minutes, a.data, a.steps, a.batch, a.crop, lr=a.lr, threads=a.threads, init=a.init,
+          shares=a.share)
 
 
 if __name__ == "__main__":
