@@ -63,11 +63,15 @@ class GeoImage:
 
 @dataclass(frozen=True, eq=False)
 class ClassMap:
-    """Terrain class ids (H, W) uint8 on the scene grid; optional per-class probabilities (H, W, 8)."""
+    """Terrain class ids (H, W) uint8 on the scene grid; optional per-class probabilities (H, W, 8), a
+    confidence (H, W) uint8 (255 = sure) and which source decided each pixel (H, W) uint8 (see
+    ``segmentation.learned.SOURCE_NAMES``)."""
 
     ids: np.ndarray
     grid: Grid
     proba: np.ndarray | None = None
+    confidence: np.ndarray | None = None
+    source: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)

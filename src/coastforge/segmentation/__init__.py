@@ -39,7 +39,8 @@ def check_class_map(cm: ClassMap, image: GeoImage, backend: str) -> ClassMap:
     if ids.size and int(ids.max()) >= N_CLASSES:
         raise InputError(f"segment backend {backend!r} returned class id {int(ids.max())}; ids must be 0..{N_CLASSES - 1}")
     if ids.dtype != np.uint8:
-        cm = ClassMap(ids=ids.astype(np.uint8), grid=cm.grid, proba=cm.proba)
+        cm = ClassMap(ids=ids.astype(np.uint8), grid=cm.grid, proba=cm.proba, confidence=cm.confidence,
+                      source=cm.source)
     return cm
 
 

@@ -1,16 +1,21 @@
-"""The learned segmenter: a small U-Net trained by coastforge on its own synthetic renders
-(``python -m coastforge.train.seg_train``), shipped as ``coastforge/data/models/segmenter.onnx`` with
-its ``segmenter.json`` and run with onnxruntime (no torch at run time).
+"""The learned segmenter: a small U-Net trained by coastforge on its own synthetic renders and on real
+labelled photos (``python -m coastforge.train.seg_train``; the card ``segmenter.json`` beside
+``coastforge/data/models/segmenter.onnx`` lists the data sets), run with onnxruntime (no torch at run time).
 
 The image is resampled to the model's working GSD (0.3 m/px), run in overlapping tiles (bounded
 memory on large images; only tile centres are kept) with a mirrored pass averaged in, land specks
 are merged, and the class probabilities are upsampled bilinearly to the image grid (smooth borders
-rather than blocks of working pixels). Water comes from the classical water model (large-scale rules
-that handle rafted boats and piers), or from the network when those rules find none at all and the
-network is sure of a large body of water (a colour the rules do not know). A self-check guards
-against photos unlike our renders: when the network disagrees with the classical colour rules on
-their confident pixels, the classical segmenter is used instead (it is also used outside 0.04-0.6
-m/px).
+rather than blocks of working pixels).
+
+Classes are decided from evidence, not by a switch (``fuse_votes``): the classical segmenter runs too;
+its water model (large-scale rules that know rafted boats, pier clusters and the gaps between them) votes in
+the network's water log-odds, so a confident network keeps its call and an unsure one follows the rules;
+among land classes the two distributions are mixed. Both are weighted by GSD (``classical_weight``: the
+classical segmenter at fine GSDs, where the network's land classes have seen only renders; the network at
+coarse ones, where it has seen real labelled photos and the classical fine-texture cues vanish). The class
+map carries a per-pixel confidence (the fused probability of the chosen class) and which
+source decided each pixel; both are written beside the scene and shown in the report. Outside the
+network's GSD range the classical segmenter is used.
 """
 
 from __future__ import annotations
@@ -33,12 +38,20 @@ TILE_PX = 768  # tile side at the working GSD (memory ~ 40 MB of activations per
 FLIPS = ((), (3,), (2,), (2, 3))  # test-time passes: as is, mirrored, flipped, both (numpy axes of NCHW)
 GSD_RANGE_M = (0.04, 0.6)  # outside, the classical segmenter is used (see LearnedSegmenter.segment)
 OVERLAP_PX = 48  # context kept around each tile centre (> half the network's useful receptive field)
-# the network's water replaces the classical water model's only when that found at most this share of
-# the image, the network's water covers at least NET_WATER_MIN_FRAC at a mean probability of at least
-# NET_WATER_MIN_P, and its land agrees with the colour rules off that water (see _net_water_instead)
-NET_WATER_MAX_CLASSICAL = 0.01
-NET_WATER_MIN_FRAC = 0.05
-NET_WATER_MIN_P = 0.9
+WATER_MODES = ("fused", "classical", "net")
+# the classical water model's vote in the network's water log-odds (fused mode): a factor of e^3 ~ 20 in the
+# odds, so a network surer than ~0.95 keeps its call and an unsure one follows the rules (which know rafted
+# boats and pier clusters; the network knows water colours they do not). Chosen a priori, not tuned on any
+# validation image.
+CLASSICAL_WATER_VOTE = 3.0
+# the classical segmenter (developed on 0.1-0.3 m/px images: fine texture over ~0.6 m, a 0.4 m working
+# raster) is trusted fully at GSDs up to the first value and not at all from the second; the network's
+# real labels are at ~0.4-1.2 m/px (Dubai, harbour photos) while at finer GSDs its land classes have seen
+# only renders
+CLASSICAL_GSD_M = (0.3, 0.6)
+# which source decided a pixel (ClassMap.source; shown in the report)
+SOURCE_BOTH, SOURCE_NETWORK, SOURCE_CLASSICAL, SOURCE_DETECTIONS = 0, 1, 2, 3
+SOURCE_NAMES = ("both agree", "network", "classical rules", "detections")  # the last: consistency.water_from_boats
 
 
 def default_weights() -> Path:
@@ -149,120 +162,107 @@ class LearnedSegmenter:
         from .classical import ClassicalSegmenter
 
         cfg = self.config
-        mode = getattr(cfg, "learned_water", "classical")
-        if mode not in ("classical", "net"):
-            raise InputError(f"segment.learned_water = {mode!r}; use 'classical' or 'net'")
+        mode = getattr(cfg, "learned_water", "fused")
+        if mode not in WATER_MODES:
+            raise InputError(f"segment.learned_water = {mode!r}; use one of {', '.join(WATER_MODES)}")
         H, W = rgb.shape[:2]
         gsd = float(image.grid.gsd_m)
         lo, hi = self.meta.get("gsd_range_m", GSD_RANGE_M)
-        self.last_agreement = None
         if not lo <= gsd <= hi:
-            # trained on 0.2-0.3 m renders: far outside, the network sees things it never saw (and
-            # upsampling a coarse image to 0.3 m would be huge); the classical rules work at any GSD
+            # far outside the scales it was trained on the network sees things it never saw (and
+            # upsampling a coarse image to the working GSD would be huge); the classical rules work at any GSD
             self.last_choice = "classical (GSD outside the network's range)"
-            return ClassicalSegmenter(cfg).segment(image, seed)
+            cm = ClassicalSegmenter(cfg).segment(image, seed)
+            return ClassMap(cm.ids, cm.grid, confidence=None, source=np.full((H, W), SOURCE_CLASSICAL, np.uint8))
         s = gsd / float(self.meta["work_gsd_m"])
         w, h = max(16, int(round(W * s))), max(16, int(round(H * s)))
         small = cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
-        if mode == "net":
-            p = self.proba_small(small)
-            self.last_choice = "network"
-            ids = p.argmax(axis=2).astype(np.uint8) if (w, h) == (W, H) else _upsample_argmax(p, H, W)
-            return ClassMap(ids=ids, grid=image.grid)
-        # one pass first: the self-check decides whether the flipped passes are worth running
-        lg = self.logits_small(small, FLIPS[:1])
-        p_net = _softmax(lg)
-        p = p_net.copy()
-        p[..., WATER] = -1.0  # land classes from the network, water from the classical model
-        water = self._classical_water(rgb, gsd, p)
-        if not isinstance(water, np.ndarray):  # the network disagrees with the image's clear cases
-            net_water = self._net_water_instead(rgb, p_net, p, water)
-            if net_water is None:
-                self.last_choice = f"classical (agreement {self.last_agreement:.2f})"
-                return ClassicalSegmenter(cfg).segment(image, seed, pre=water)
-            water = net_water
-            self.last_choice = (f"network land + network water: the classical water model found none "
-                                f"(agreement {self.last_agreement:.2f})")
+        p = self.proba_small(small)
+        net_ids = p.argmax(axis=2).astype(np.uint8)
+        if mode == "net" or (mode == "fused" and classical_weight(gsd) == 0.0):
+            self.last_choice = "network" + ("" if mode == "net" else " (no weight for the classical rules here)")
+            votes = None
         else:
-            self.last_choice = f"network land + classical water (agreement {self.last_agreement:.2f})"
-        if self.flips > 1:
-            n = self.flips
-            lg = (lg + (n - 1) * self.logits_small(small, FLIPS[1:n])) / n
-            p = _softmax(lg)
-            p[..., WATER] = -1.0
+            votes = self._classical_votes(image, seed, (h, w))
+            lw = classical_weight(gsd)
+            vote = CLASSICAL_WATER_VOTE * lw if mode == "fused" else 30.0  # "classical": its water always wins
+            fuse_votes(p, votes, vote, lw)
+            self.last_choice = (f"network + classical segmenter (water vote {vote:g} in log-odds, classical land "
+                                f"weight {lw:.2f})")
         min_px = float(getattr(cfg, "learned_min_region_m2", 12.0)) / float(self.meta["work_gsd_m"]) ** 2
-        _merge_specks(p, min_px)
-        ids = p.argmax(axis=2).astype(np.uint8) if (w, h) == (W, H) else _upsample_argmax(p, H, W)
-        ids[water] = WATER
-        return ClassMap(ids=ids, grid=image.grid)
+        _merge_specks(p, min_px, fixed=p.argmax(axis=2) == WATER)
+        ids_small = p.argmax(axis=2).astype(np.uint8)
+        conf = (255.0 * p.max(axis=2)).astype(np.uint8)
+        src = source_map(net_ids, ids_small, votes)
+        if (w, h) == (W, H):
+            return ClassMap(ids_small, image.grid, confidence=conf, source=src)
+        ids = _upsample_argmax(p, H, W)
+        conf = cv2.resize(conf, (W, H), interpolation=cv2.INTER_LINEAR)
+        src = cv2.resize(src, (W, H), interpolation=cv2.INTER_NEAREST)
+        return ClassMap(ids, image.grid, confidence=conf, source=src)
 
-    def _classical_water(self, rgb: np.ndarray, gsd: float, land_p: np.ndarray) -> np.ndarray | tuple:
-        """Water mask on the image grid from the classical water model (large-scale rules: rafted boats,
-        pier clusters and gaps between them are water; the network, trained on sparse synthetic
-        marinas, sees dense real rafts as pavement), its waterline sharpened at full resolution
-        against the network's land classes.
+    def _classical_votes(self, image: GeoImage, seed: int, shape: tuple[int, int]) -> np.ndarray:
+        """The classical segmenter's class map as the share of each class in each working pixel, (h, w, 8)
+        float32 on a grid of ``shape``. Its water model knows rafted boats, pier clusters and the gaps
+        between them; its land classifier adapts to each image (self-training on its confident pixels)."""
+        from .classical import ClassicalSegmenter
 
-        Returns the classical (features, water, open water) instead when the network's land classes
-        agree with the classical colour rules' confident pixels (``land_seeds``) on less than
-        ``segment.learned_min_agreement`` of them: on our renders the agreement is 0.8-0.95, on real
-        photos unlike them it drops (0.57 on the DOTA marina), and then the classical segmenter is the
-        better guess (it reuses the features and water computed here)."""
-        from .classical import ClassicalSegmenter, compute_features, detect_water, land_seeds, refine_water_edge
+        h, w = shape
+        ids = ClassicalSegmenter(self.config).segment(image, seed).ids
+        out = np.empty((h, w, N_CLASSES), np.float32)
+        for c in range(N_CLASSES):
+            one = (ids == c).astype(np.float32)
+            out[..., c] = cv2.resize(one, (w, h), interpolation=cv2.INTER_AREA if one.shape[1] > w
+                                     else cv2.INTER_LINEAR)
+        return out
 
-        cfg = self.config
-        H, W = rgb.shape[:2]
-        sc = ClassicalSegmenter(cfg).work_scale(W, H, gsd)
-        if sc < 0.999:
-            wc, hc = max(8, int(round(W * sc))), max(8, int(round(H * sc)))
-            small = cv2.resize(rgb, (wc, hc), interpolation=cv2.INTER_AREA)
-        else:
-            wc, hc, small = W, H, rgb
-        F = compute_features(small, gsd * W / wc)
-        water, open_water = detect_water(F, cfg, return_open=True)
-        ids_c = _land_ids_at(land_p, hc, wc)
-        seeds = land_seeds(F, water, cfg.rocks_shore_m)
-        m = seeds >= 0
-        self.last_agreement = float((ids_c[m] == seeds[m]).mean()) if m.sum() >= 200 else 1.0
-        if self.last_agreement < float(getattr(cfg, "learned_min_agreement", 0.7)):
-            return (F, water, open_water)  # reused by the classical fallback
-        if (wc, hc) == (W, H):
-            return water
-        ids_c[water] = WATER
-        return refine_water_edge(rgb, ids_c, water, F, open_water=open_water) == WATER
 
-    def _net_water_instead(self, rgb: np.ndarray, p_net: np.ndarray, land_p: np.ndarray,
-                           pre: tuple) -> np.ndarray | None:
-        """Water on the image grid from the network, when the classical water model found (almost)
-        none but the network sees a large body of water it is sure of (a colour the classical rules do
-        not know, e.g. a silty olive-brown river, whose pixels the rules then seed as land, so the
-        self-check fails on them) and the network's land classes agree with the rules' confident
-        pixels everywhere else. Else None (the classical segmenter is used, as before).
+def classical_weight(gsd_m: float) -> float:
+    """How much the classical segmenter is trusted against the network at this GSD: 1 up to
+    CLASSICAL_GSD_M[0], 0 from CLASSICAL_GSD_M[1], linear between. It scales the water vote and weighs the
+    land classes."""
+    lo, hi = CLASSICAL_GSD_M
+    return float(np.clip((hi - gsd_m) / (hi - lo), 0.0, 1.0))
 
-        On real photos unlike our renders the network's water is not to be trusted (it calls half of a
-        DOTA car park water, at ~0.7 probability): the confidence and the agreement off the water
-        both guard against that."""
-        from .classical import land_seeds
 
-        cfg = self.config
-        F, water_c, _open = pre
-        if water_c.mean() > NET_WATER_MAX_CLASSICAL:
-            return None
-        wn = p_net.argmax(axis=2) == WATER
-        if wn.mean() < NET_WATER_MIN_FRAC or float(p_net[..., WATER][wn].mean()) < NET_WATER_MIN_P:
-            return None
-        hc, wc = water_c.shape
-        wn_c = cv2.resize(wn.astype(np.uint8), (wc, hc), interpolation=cv2.INTER_NEAREST).astype(bool)
-        ids_c = _land_ids_at(land_p, hc, wc)
-        seeds = land_seeds(F, wn_c, cfg.rocks_shore_m)
-        m = seeds >= 0
-        if m.sum() < 200:
-            return None
-        agreement = float((ids_c[m] == seeds[m]).mean())
-        if agreement < float(getattr(cfg, "learned_min_agreement", 0.7)):
-            return None
-        self.last_agreement = agreement
-        H, W = rgb.shape[:2]
-        return _upsample_argmax(p_net, H, W) == WATER if p_net.shape[:2] != (H, W) else wn
+def fuse_votes(p: np.ndarray, votes: np.ndarray, water_vote: float, land_weight: float) -> None:
+    """Combine the network's probabilities ``p`` (h, w, 8) with the classical segmenter's class shares
+    ``votes`` (h, w, 8), in place.
+
+    Water against land: the classical share of water votes in the network's water log-odds (``water_vote``
+    for a pixel it calls water, ``-water_vote`` for land), so a confident network outvotes it and an unsure
+    one follows it. Among land classes: a geometric mix of the two distributions, the classical one
+    weighted ``land_weight`` (``classical_weight``); where the classical map has no land class (its
+    water), the network's land classes stand."""
+    pw = np.clip(p[..., WATER], 1e-6, 1 - 1e-6)
+    logit = np.log(pw) - np.log1p(-pw) + water_vote * (2.0 * votes[..., WATER] - 1.0)
+    pw2 = (1.0 / (1.0 + np.exp(-logit))).astype(np.float32)
+    land = p[..., 1:] / (1.0 - pw)[..., None]
+    if land_weight > 0:
+        q = votes[..., 1:]
+        qs = q.sum(axis=2, keepdims=True)
+        q = q / np.maximum(qs, 1e-6)
+        q = 0.98 * q + 0.02 / (N_CLASSES - 1)  # a floor: the network can still say what the rules never do
+        lw = land_weight * np.clip(qs, 0.0, 1.0)  # as much as the rules saw land there
+        logl = (1.0 - lw) * np.log(np.clip(land, 1e-6, 1.0)) + lw * np.log(q)
+        logl -= logl.max(axis=2, keepdims=True)
+        land = np.exp(logl)
+        land /= land.sum(axis=2, keepdims=True)
+    p[..., WATER] = pw2
+    p[..., 1:] = land * (1.0 - pw2)[..., None]
+
+
+def source_map(net_ids: np.ndarray, ids: np.ndarray, votes: np.ndarray | None) -> np.ndarray:
+    """Which source decided each pixel (SOURCE_*): both agreed, the network outvoted the classical
+    segmenter, or the classical segmenter outvoted the network."""
+    out = np.full(ids.shape, SOURCE_BOTH, np.uint8)
+    if votes is None:
+        out[:] = SOURCE_NETWORK
+        return out
+    cls, final, net = votes.argmax(axis=2), ids, net_ids
+    out[(final != cls) & (final == net)] = SOURCE_NETWORK
+    out[(final == cls) & (final != net)] = SOURCE_CLASSICAL
+    return out
 
 
 def _softmax(logits: np.ndarray) -> np.ndarray:
@@ -276,24 +276,18 @@ def _softmax(logits: np.ndarray) -> np.ndarray:
     return e.astype(np.float32, copy=False)
 
 
-def _merge_specks(p: np.ndarray, min_px: float) -> None:
+def _merge_specks(p: np.ndarray, min_px: float, fixed: np.ndarray | None = None) -> None:
     """Land specks under ``min_px`` working pixels take the class of the nearest larger region (in
-    place, as one-hot probabilities, so the later bilinear upsampling keeps smooth borders)."""
+    place, as one-hot probabilities, so the later bilinear upsampling keeps smooth borders); ``fixed``
+    pixels (water) stay as they are."""
     from .classical import _merge_small
 
     ids = p.argmax(axis=2).astype(np.uint8)
-    merged = _merge_small(ids, int(round(min_px)), fixed=np.zeros(ids.shape, bool))
+    merged = _merge_small(ids, int(round(min_px)), fixed=np.zeros(ids.shape, bool) if fixed is None else fixed)
     ch = merged != ids
     if ch.any():
         p[ch] = 0.0
         p[ch, merged[ch]] = 1.0
-
-
-def _land_ids_at(land_p: np.ndarray, h: int, w: int) -> np.ndarray:
-    """The most likely land class per pixel of an h x w grid (``land_p``: land probabilities, any grid)."""
-    if land_p.shape[:2] != (h, w):
-        return _upsample_argmax(land_p, h, w)
-    return land_p.argmax(2).astype(np.uint8)
 
 
 def _upsample_argmax(p: np.ndarray, H: int, W: int, rows: int = 512) -> np.ndarray:

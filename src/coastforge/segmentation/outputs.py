@@ -2,6 +2,9 @@
 
 - ``classes.png``: uint8 class ids (DESIGN.md §2), the scene grid.
 - ``classes_preview.png``: the class palette blended over the image, for people.
+- ``confidence.png`` (when the backend gives one): uint8, 255 = sure of the pixel's class; and
+  ``source.png``: which source decided each pixel (0 both agree, 1 the network, 2 the classical rules;
+  legend in ``segmentation.json``).
 - ``weights/<class>.png``: one 8-bit weight map per class (Unreal landscape paint layers). Borders are
   softened by a Gaussian of ``segment.weight_blur_m`` metres; at every pixel the eight maps sum to
   exactly 255 (the rounding remainder goes to the pixel's own class).
@@ -37,6 +40,7 @@ from ..classes import ASPHALT, CLASS_NAMES, DIRT, GRASS, N_CLASSES, ROCKS, SAND,
 from ..config import SegmentConfig
 from ..fsio import atomic_write_text, write_png
 from ..types import ClassMap, GeoImage
+from .learned import SOURCE_NAMES
 
 BIOMES: tuple[tuple[int, str, str], ...] = (
     (0, "deep_water", "water farther than biome_shallow_m from land"),
@@ -157,6 +161,11 @@ def write_segmentation(out_dir: str | Path, class_map: ClassMap, image: GeoImage
     paths["classes"] = str(write_png(out / "classes.png", ids))
     if image is not None:
         paths["preview"] = str(write_png(out / "classes_preview.png", preview(image.rgb, ids)))
+    if class_map.confidence is not None:
+        paths["confidence"] = str(write_png(out / "confidence.png", np.ascontiguousarray(class_map.confidence,
+                                                                                          dtype=np.uint8)))
+    if class_map.source is not None:
+        paths["source"] = str(write_png(out / "source.png", np.ascontiguousarray(class_map.source, dtype=np.uint8)))
     wm = weight_maps(ids, gsd, cfg.weight_blur_m)
     for c, name in enumerate(CLASS_NAMES):
         paths[f"weights/{name}"] = str(write_png(out / "weights" / f"{name}.png", wm[..., c]))
@@ -179,6 +188,11 @@ def write_segmentation(out_dir: str | Path, class_map: ClassMap, image: GeoImage
         "gsd_m": gsd,
         "size_px": [int(ids.shape[1]), int(ids.shape[0])],
         "class_fractions": fractions,
+        **({"confidence_mean": round(float(np.mean(class_map.confidence)) / 255.0, 4)}
+           if class_map.confidence is not None else {}),
+        **({"source_legend": {str(i): n for i, n in enumerate(SOURCE_NAMES)},
+            "source_fractions": {n: float(np.mean(class_map.source == i)) for i, n in enumerate(SOURCE_NAMES)}}
+           if class_map.source is not None else {}),
         "files": {k: Path(v).relative_to(out).as_posix() for k, v in paths.items()},
     }
     paths["meta"] = str(atomic_write_text(out / "segmentation.json", json.dumps(meta, indent=1)))
