@@ -64,12 +64,12 @@ def test_without_water_in_the_map_nor_in_the_image_boats_are_on_land():
     assert [d.category for d in kept] == ["boat", "buoy"]
 
 
-def test_vehicles_on_riprap_or_water_go():
+def test_vehicles_on_riprap_go_and_vehicles_in_water_are_boats():
     """A breakwater: a 2 m walkway between riprap, water beyond. Car-sized boxes on its riprap (the learned
-    net took the blocks for cars) or in the water go; a car on the walkway, one at the quay's edge and one on
-    the car park stay; boats are not concerned."""
+    net took the blocks for cars) go; one standing in the water is a small boat (category from context);
+    a car on the walkway, one at the quay's edge and one on the car park stay; boats are not concerned."""
     from coastforge.classes import ROCKS, SIDEWALK
-    from coastforge.detection import vehicles_off_land
+    from coastforge.consistency import recategorise
 
     ids = np.full((400, 800), WATER, np.uint8)
     ids[200:400, :] = ASPHALT  # a quay and car park in the south half
@@ -88,6 +88,11 @@ def test_vehicles_on_riprap_or_water_go():
     in_car_park = car(300, 320, yaw=90.0)
     boat = Detection("boat", 0.8, 600.0, 30.0, 6 / GSD, 2.4 / GSD, 0.0)
     dets = [on_riprap, half_on_riprap, in_water, on_walkway, at_quay_edge, in_car_park, boat]
-    assert vehicles_off_land(dets, cm) == [on_walkway, at_quay_edge, in_car_park, boat]
-    assert vehicles_off_land(dets, cm, max_wet=0.7) == [half_on_riprap, on_walkway, at_quay_edge, in_car_park,
-                                                        boat]
+    out, notes = recategorise(dets, cm, DetectConfig())
+    assert [(d.category, d.cx_px, d.cy_px) for d in out] == [
+        ("boat", 300.0, 30.0), ("vehicle", 400.0, 108.0), ("vehicle", 300.0, 212.0), ("vehicle", 300.0, 320.0),
+        ("boat", 600.0, 30.0)]
+    assert out[0].heading_known is False  # the matcher decides the converted boat's front
+    assert notes == {"vehicles_in_water_made_boats": 1, "vehicles_on_riprap_dropped": 2}
+    out, _ = recategorise(dets, cm, DetectConfig(vehicle_max_wet=0.7))
+    assert half_on_riprap in out and on_riprap not in out

@@ -47,8 +47,9 @@ class SegmentConfig:
     edge_refine_m: float = 1.0  # classical: land pixels this close to a class border are re-decided by their fine features (0 = off)
     biome_shore_m: float = 15.0  # biome map: land this close to the waterline is "shore"
     biome_shallow_m: float = 20.0  # biome map: water this close to land is "shallow" (seaweed)
-    learned_water: str = "classical"  # learned backend: water from the "classical" water model or the "net"
-    learned_min_agreement: float = 0.7  # learned backend: below this agreement with the colour rules, use classical
+    # learned backend: water from the network and the classical water model's vote ("fused"), the classical
+    # model alone ("classical") or the network alone ("net")
+    learned_water: str = "fused"
     learned_flips: int = 2  # learned backend: test-time flips averaged (1 = none, 2 = + mirror, up to 4)
     learned_min_region_m2: float = 12.0  # learned backend: smaller land specks join their surroundings
 
@@ -102,6 +103,7 @@ class DetectConfig:
     water_model_m: float = 8.0  # scale of the local water colour model
     near_water_m: float = 15.0  # objects further from water are land
     boats_need_water: bool = True  # any backend: a boat further than near_water_m from water is not one
+    boats_make_water: bool = True  # any backend, with a class map: clusters of moored boats are water (consistency.py)
     # any backend, with a class map: a vehicle whose box is at least this fraction water or rock (riprap) is
     # not one (0 = off): the learned net took riprap blocks along breakwaters for cars (synthetic levels,
     # seeds 1, 2 and 4: 26 boxes, 0.84-1.0 water or rock under them); every true car of seeds 0-4 had under

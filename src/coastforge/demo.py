@@ -55,6 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     for fmt, paths in r.exports.items():
         print(f"  export {fmt:<9}: {out / fmt}  ({len(paths)} files)")
     print(f"  report      : {report}   <- open this in a browser")
+    for w in r.warnings:  # the self-check (none on this example)
+        print(f"  warning     : {w}")
 
     def f(v):
         return "-" if v is None else f"{v:.2f}"

@@ -56,6 +56,7 @@ class GenerateResult:
     n_objects: dict
     exports: dict = field(default_factory=dict)
     report_path: Path | None = None
+    warnings: list = field(default_factory=list)  # selfcheck.Warning: the scene looks implausible
 
 
 class _Timer:
@@ -120,7 +121,7 @@ def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: fl
         else:
             fill = int(counts.argmax())
         sub[inner.astype(bool)] = fill
-    return ClassMap(ids, class_map.grid, class_map.proba)
+    return ClassMap(ids, class_map.grid, class_map.proba, class_map.confidence, class_map.source)
 
 
 def _load_library(path: str | None):
@@ -278,7 +279,11 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                     side.submit(_preload_library, req.library)
 
                 bg.submit("side_library", side_library)
-            dets = detect(image, config.detect, class_map=class_map, seed=seed, **opts)
+            dets, class_map, consistency = detect(image, config.detect, class_map=class_map, seed=seed,
+                                                  return_class_map=True, **opts)
+        from .selfcheck import check_scene
+
+        warnings = check_scene(class_map.ids, grid.gsd_m, dets)
         with timer.stage("clean"):
             class_map = fill_under_objects(class_map, dets)
         if side is not None:  # matching is mostly Python: in the side process it leaves the GIL to the chain
@@ -317,7 +322,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             scene = write_scene_files(
                 bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
                 scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
-                                 veg.vegetation, pier_report, decisions),
+                                 veg.vegetation, pier_report, decisions, consistency=consistency,
+                                 warnings=[w.to_dict() for w in warnings]),
                 pending=("cleaned", "segmentation", "report_meshes", "scene_rasters", "pcg", "terrain_outputs"))
         timings = dict(timer.t)
         timings["total"] = round(sum(timer.t.values()), 3)
@@ -334,7 +340,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             timings["total"] = round(timings["total"] + timings["export"], 3)
 
         def wait(part: str):
-            job = {"meshes": "report_meshes", "cleaned": "cleaned", "terrain": "terrain_outputs"}.get(part)
+            job = {"meshes": "report_meshes", "cleaned": "cleaned", "terrain": "terrain_outputs",
+                   "segmentation": "segmentation"}.get(part)
             return bg.result(job) if job else bg.wait()
 
         report_path = make_report(req, out, timings, scene=_with_timings(scene, timings, timer, bg),
@@ -344,7 +351,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
         # the JSON last, once every file it describes is written: a folder with a scene.json is complete
         scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)
     return GenerateResult(scene_path, out, timings, object_counts(objects, len(veg.vegetation)), exports,
-                          report_path)
+                          report_path, warnings)
 
 
 def _with_timings(scene: Scene, timings: dict, timer: _Timer, bg: "_Background") -> Scene:

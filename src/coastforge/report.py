@@ -269,7 +269,53 @@ def _overview(image, top) -> str:
     return '<div class="pair">' + "".join(row) + "</div>"
 
 
-def _classes_section(scene: Scene, base: np.ndarray | None, cleaned: np.ndarray | None) -> str:
+def _confidence_figure(scene_dir: Path, shape: tuple[int, int] | None) -> str:
+    """The segmentation's per-pixel confidence and which source decided each pixel, when written."""
+    from .fsio import read_png
+
+    seg = scene_dir / "segmentation"
+    figs = []
+    if (seg / "confidence.png").is_file():
+        conf = read_png(seg / "confidence.png")
+        import cv2
+
+        col = cv2.applyColorMap(255 - np.ascontiguousarray(conf, np.uint8), cv2.COLORMAP_INFERNO)[..., ::-1]
+        if shape is not None:
+            col = _resize_to(col, shape)
+        figs.append(_img(_data_uri(_fit(col)), f"Segmentation confidence (dark = sure, light = unsure; mean "
+                                              f"{np.mean(conf) / 2.55:.0f} %)"))
+    if (seg / "source.png").is_file():
+        from .segmentation.learned import SOURCE_NAMES
+
+        src = read_png(seg / "source.png")
+        pal = np.array([[200, 200, 200], [40, 110, 220], [230, 130, 30], [220, 40, 160]], np.uint8)
+        col = pal[np.clip(src, 0, 3)]
+        if shape is not None:
+            col = _resize_to(col, shape, nearest=True)
+        share = ", ".join(f"{n} {100 * np.mean(src == i):.1f} %" for i, n in enumerate(SOURCE_NAMES))
+        figs.append(_img(_data_uri(_fit(col), "png"), "Who decided each pixel: grey both agree, blue the "
+                         "network outvoted the classical water rules, orange the rules outvoted the network, "
+                         f"magenta moored boats made it water ({share})"))
+    return '<div class="pair">' + "".join(figs) + "</div>" if figs else ""
+
+
+def _warnings_block(scene: Scene) -> str:
+    """The self-check's warnings (``coastforge.selfcheck``) and what the stages' reconciliation changed."""
+    prov = scene.provenance or {}
+    items = [f"<li><b>{html.escape(w.get('message', ''))}</b> {html.escape(w.get('hint', ''))}</li>"
+             for w in prov.get("warnings") or []]
+    out = ""
+    if items:
+        out += ('<div class="warnbox"><b>This scene looks implausible:</b><ul>' + "".join(items) + "</ul></div>")
+    rec = prov.get("consistency") or {}
+    if rec:
+        out += _note("Segmentation and detection reconciled: " + html.escape(
+            ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in rec.items())) + ".")
+    return out
+
+
+def _classes_section(scene: Scene, base: np.ndarray | None, cleaned: np.ndarray | None,
+                     scene_dir: Path | None = None) -> str:
     if scene.classes is None:
         return _note("No class map.")
     grid = scene.grid
@@ -293,7 +339,8 @@ def _classes_section(scene: Scene, base: np.ndarray | None, cleaned: np.ndarray 
     figs = [overlay]
     if cleaned is not None:
         figs.append(_img(_data_uri(_fit(cleaned)), "Cleaned image (boats and vehicles removed, inpainted)"))
-    return legend + '<div class="pair">' + "".join(figs) + "</div>"
+    conf = _confidence_figure(scene_dir, base.shape[:2] if base is not None else None) if scene_dir else ""
+    return legend + '<div class="pair">' + "".join(figs) + "</div>" + conf
 
 
 def _draw_detections(img: np.ndarray, dets: list[dict], scale: float, labels: dict[int, str]) -> np.ndarray:
@@ -909,7 +956,8 @@ background-size:cover;border:1px solid #ccd}.av.small{width:44px;height:44px}.ca
 .cand{display:flex;gap:4px;align-items:center;font-size:12px}
 .legend span{display:inline-block;margin:2px 14px 4px 0;font-size:13px}
 .legend i,.sw{display:inline-block;width:14px;height:14px;margin-right:5px;vertical-align:-2px;
-border:1px solid #777;border-radius:2px}small,.muted,.note{color:#5b6875}.note{margin:4px 0 10px}
+border:1px solid #777;border-radius:2px}.warnbox{background:#fff4d6;border:1px solid #e0a800;border-radius:4px;padding:6px 12px;margin:8px 0;color:#5a4300}
+small,.muted,.note{color:#5b6875}.note{margin:4px 0 10px}
 .ok{color:#1a7f37}.bad{color:#c62828}.bars{margin:6px 0 10px;max-width:620px}
 .bar{display:flex;align-items:center;gap:8px;margin:3px 0}
 .bar .lab{flex:0 0 110px;font-size:13px;text-align:right}.bar .track{flex:1 1 auto}
@@ -1049,7 +1097,9 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
             wait("meshes")
         # the inpainted image: shown beside the class map and textures the 3D preview (None when absent)
         cleaned = wait("cleaned") if wait is not None else _read_rgb(scene_dir / "cleaned.png")
-        return _guard("classes", _classes_section, scene, base, cleaned), _glb_bytes(scene, scene_dir, assets,
+        if wait is not None:
+            wait("segmentation")  # its confidence and source rasters
+        return _guard("classes", _classes_section, scene, base, cleaned, scene_dir), _glb_bytes(scene, scene_dir, assets,
                                                                                     cleaned)
 
     from concurrent.futures import ThreadPoolExecutor
@@ -1105,12 +1155,13 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
              f"{len(scene.vegetation) if scene.vegetation is not None else 0} plants/rocks",
              f"seed {scene.seed}"]
     src = f" · input: {html.escape(image_src)}" if image_src else ""
+    warn = _warnings_block(scene)
     page = f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"/>
 <meta name="viewport" content="width=device-width, initial-scale=1"/>
 <title>coastforge report: {html.escape(scene.name)}</title><style>{CSS}{asset_css}</style></head><body>
 <header><h1>coastforge — {html.escape(scene.name)}</h1>
 <div class="chips">{"".join(f"<span>{c}</span>" for c in chips)}</div>
-<p>Generated environment report{src}</p></header><nav>{nav}</nav>{body}
+<p>Generated environment report{src}</p>{warn}</header><nav>{nav}</nav>{body}
 <footer>Self-contained page: works offline; the 3D view uses three.js (MIT licence), bundled.</footer>
 <div id="lightbox"><img alt="enlarged picture"/></div>
 <script>{bundle}</script>

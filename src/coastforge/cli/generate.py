@@ -6,6 +6,7 @@ import shlex
 import sys
 
 import click
+from rich.markup import escape
 
 from .options import overwrite_option, pass_config, size_options
 
@@ -56,3 +57,5 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
         console.print(f"export   {fmt}: {path}")
     if result.report_path:
         console.print(f"[bold]report[/bold] {result.report_path}")
+    for w in result.warnings:  # the self-check: the scene looks implausible (also in the report)
+        console.print(f"[bold yellow]warning[/bold yellow] {escape(w.message)} [dim]{escape(w.hint)}[/dim]")

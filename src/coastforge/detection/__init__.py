@@ -32,8 +32,13 @@ class Detector(Protocol):
 
 
 def detect(image: GeoImage, config: DetectConfig | None = None, class_map: ClassMap | None = None,
-           backend: str | None = None, seed: int = 0, **opts: Any) -> list[Detection]:
-    """Run one detector backend on an image; returns detections sorted by descending score."""
+           backend: str | None = None, seed: int = 0, return_class_map: bool = False,
+           **opts: Any) -> list[Detection] | tuple[list[Detection], ClassMap | None, dict]:
+    """Run one detector backend on an image; returns detections sorted by descending score.
+
+    With a ``class_map`` the two are reconciled (``coastforge.consistency``): moored boats make water,
+    vehicles in water become boats, boats far from water become vehicles or go. ``return_class_map``:
+    return (detections, the corrected class map, what the reconciliation changed)."""
     from .. import registry
 
     config = config or DetectConfig()
@@ -62,10 +67,12 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
 
             # vehicles: the backend's front (the learned net's) is a prior, the windscreen cue is added
             dets = vehicle_fronts(rgb, dets)
-    if class_map is not None and config.boats_need_water:
-        dets = boats_off_water(dets, class_map, image.grid.gsd_m, config, rgb=rgb)
-    if class_map is not None and config.vehicle_max_wet > 0:
-        dets = vehicles_off_land(dets, class_map, config.vehicle_max_wet)
+    notes: dict = {}
+    if class_map is not None:
+        from ..consistency import reconcile
+
+        rec = reconcile(dets, class_map, image.grid.gsd_m, config, rgb=rgb)
+        dets, class_map, notes = rec.dets, rec.class_map, rec.notes
     out = []
     for d in dets:
         if d.category not in DETECTION_CATEGORIES:
@@ -73,6 +80,8 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
         if d.score >= config.min_score:
             out.append(d)
     out.sort(key=lambda d: (-d.score, d.cy_px, d.cx_px))
+    if return_class_map:
+        return out, class_map, notes
     return out
 
 
@@ -136,21 +145,6 @@ def boats_off_water(dets: list[Detection], class_map: ClassMap, gsd_m: float, co
         if (d.category == "boat" and config.min_vehicle_length_m <= length_m <= config.max_vehicle_length_m
                 and 1.3 <= width_m <= 3.0 and paved >= 0.5):
             out.append(replace(d, category="vehicle", heading_known=False, heading_confidence=0.5))
-    return out
-
-
-def vehicles_off_land(dets: list[Detection], class_map: ClassMap, max_wet: float = 0.5) -> list[Detection]:
-    """Vehicles whose box is at least ``max_wet`` water or rock are dropped: cars do not stand on riprap
-    (the learned net takes the blocks of a breakwater's revetment for parked cars) or in the water."""
-    from ..classes import ROCKS, WATER
-
-    out = []
-    for d in dets:
-        if d.category == "vehicle":
-            under = values_under_box(class_map.ids, d)
-            if under.size and np.isin(under, (WATER, ROCKS)).mean() >= max_wet:
-                continue
-        out.append(d)
     return out
 
 

@@ -1,11 +1,11 @@
 """The ``hybrid`` detector: the learned network for boats, vehicles and buoys, the classical detector for piers.
 
-The learned network (trained on coastforge's renders) is far better on rendered scenes (boats: recall 1.00 vs
-0.72, orientation 0.6-1.2° vs 25°, heading 98 % vs 86 %) but finds fewer boats on the real marina photo
-(0.63 vs 0.89); it does not detect piers. Learned boats far from the classical detector's water are on land
-(the net takes some buses, vans and roofs for boats): vehicle-sized ones become vehicles, others are
-dropped (real marina precision 0.81 -> 0.91 with an earlier net); a boat the net scores nearly as much a
-vehicle must have water closer still.
+The learned network (trained on coastforge's renders and the real sets' training splits) is far better on
+rendered scenes (orientation 0.5-1.3° vs 25°) and on real harbour photos than the classical detector; it
+does not detect piers. Its boats are not checked against the classical detector's own water mask: on real
+harbour photos that mask misses much of the water and vetoed true boats (ships_aerial training split:
+recall 0.53 with the check, 0.70 without). With a class map, ``coastforge.consistency`` decides boats
+far from water (the segmenter's water, corrected by the boats themselves).
 
 ``union=True`` (``DetectConfig.hybrid_union``, on in the default preset) also keeps classical boats that no
 learned box overlaps or mostly contains, when they pass these checks:
@@ -37,14 +37,6 @@ from . import values_under_box
 
 PIERS = ("pier_walkway", "pier_finger")
 UNION_IOA = 0.3
-# learned boats this far (m) from the classical water mask are on land: true boats were at most 5.5 m
-# from it (synthetic levels, real marina), the net's boats on land (cars, buses, roofs) 10-60 m
-LAND_REACH_M = 8.0
-# ... a boat the net scores nearly as much a vehicle (a vehicle peak inside it at this fraction of the
-# boat's score) needs water this close: on the real marina the one such learned boat away from the
-# water was a truck beside the harbour office (6 m from the water), on synthetic levels the one such
-# true boat floats
-AMBIGUOUS_RATIO, AMBIGUOUS_REACH_M = 0.8, 4.0
 # classical-only boats (union): a core this uniform (std of OpenCV Lab L, 0-255) or coloured this close
 # to the pier decks (Lab distance) is a deck, not a boat; see ``_not_decks``. Synthetic false ones:
 # std 6-20 or distance <= 6.8; real marina true ones: std >= 40, distance >= 6.4
@@ -100,7 +92,7 @@ class HybridDetector:
         learned = self.learned.detect(image, class_map, seed, floor=floor)
         classical = self._classical(image, class_map, seed)  # after the network: it may be computing elsewhere
         strong = [d for d in learned if self.learned.is_confident(d)] if floor is not None else learned
-        objects = self._on_land_as_vehicles(strong, image.grid.gsd_m, learned if floor is not None else ())
+        objects = strong
         piers = [d for d in classical if d.category in PIERS]
         if not self.union:
             return objects + piers
@@ -121,38 +113,6 @@ class HybridDetector:
         merged = rotated_nms([*objects, *[_demote(d) for d in extra]], self.config.nms_iou,
                              ioa_threshold=UNION_IOA)
         return merged + piers
-
-
-    def _on_land_as_vehicles(self, dets: list[Detection], gsd_m: float,
-                             evidence: list[Detection] = ()) -> list[Detection]:
-        """A learned boat with no water within ``LAND_REACH_M`` of its box (in the classical
-        detector's water mask) is on land: a vehicle when it has a vehicle's size (a bus, a van), else
-        dropped. Boats on trailers are rare enough next to this net's buses-as-boats. A boat the net
-        also scores nearly as much a vehicle (a vehicle peak in ``evidence``, e.g. its weak boxes,
-        inside it with at least ``AMBIGUOUS_RATIO`` of its score) needs water within
-        ``AMBIGUOUS_REACH_M``."""
-        import cv2
-
-        water = getattr(self.classical, "water_work", None)
-        if water is None or not water.any():
-            return dets  # no water model (e.g. an inland image): nothing to check against
-        s = float(self.classical.work_scale)
-        # metres from each work pixel to the nearest water
-        dist = cv2.distanceTransform((~water).astype(np.uint8), cv2.DIST_L2, 3) * (gsd_m / s)
-        vehicles = [e for e in evidence if e.category == "vehicle"]
-        out = []
-        for d in dets:
-            if d.category != "boat":
-                out.append(d)
-                continue
-            inside = values_under_box(dist, d, s)
-            ambiguous = any(v.score >= AMBIGUOUS_RATIO * d.score for v in _supported_by([d], vehicles))
-            reach = AMBIGUOUS_REACH_M if ambiguous else LAND_REACH_M
-            if inside.size == 0 or float(inside.min()) <= reach:
-                out.append(d)
-            elif d.length_px * gsd_m <= self.config.max_vehicle_length_m:
-                out.append(replace(d, category="vehicle"))
-        return out
 
 
 def _inside(boxes: list[Detection], evidence: list[Detection]) -> np.ndarray:
