@@ -32,6 +32,12 @@ def test_many_boats_little_water_and_one_class():
     assert "segment.learned_water" in w[0].hint  # says what to try
 
 
+def test_open_water_with_boats_is_plausible():
+    ids = np.full((800, 800), WATER, np.uint8)
+    assert check_scene(ids, GSD, _dets("boat", 12, 9.0, 3.2)) == []
+    assert _codes(check_scene(ids, GSD, [])) == {"one_class"}  # no boat, no shore: say so
+
+
 def test_density_and_size_say_the_gsd_is_wrong():
     ids = np.full((200, 200), WATER, np.uint8)  # 50 x 50 m of water
     ids[:, :60] = SAND

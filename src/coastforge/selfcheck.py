@@ -55,7 +55,8 @@ def check_scene(class_ids: np.ndarray, gsd_m: float, dets) -> list[Warning]:
             "The segmenter probably missed the water (an unusual colour?): look at segmentation/classes_preview.png; "
             "try --set segment.learned_water=net, or give a class raster with --segment-backend labels."))
     top = int(np.argmax(share))
-    if share[top] >= ONE_CLASS:
+    # open water with boats on it (an anchorage, a marina seen from high up) is a plausible scene
+    if share[top] >= ONE_CLASS and not (top == WATER and boats):
         out.append(Warning(
             "one_class",
             f"{100 * share[top]:.0f} % of the image is one class ({CLASS_NAMES[top]}).",
