@@ -66,3 +66,18 @@ def test_unsure_boats_do_not_move_the_water():
     cm = ClassMap(ids, Grid(600, 400, GSD))
     new, _ = water_from_boats([_boat(100 + i * 14, 200, score=0.3) for i in range(8)], cm, GSD)
     assert (new.ids == WATER).sum() == 0
+
+
+def test_a_car_in_a_patch_of_water_among_land_stays_a_car():
+    """A dark car park partly read as water: the car standing in that patch keeps its category (the class
+    map is what is wrong there); the same car in open water would be a boat."""
+    from coastforge.consistency import recategorise
+
+    ids = np.full((400, 600), ASPHALT, np.uint8)
+    ids[194:206, 290:312] = WATER  # a 5.5 x 3 m "water" patch (a dark bay) under the car
+    car = Detection("vehicle", 0.7, 300.0, 200.0, 4.6 / GSD, 1.9 / GSD, 0.0)
+    out, notes = recategorise([car], ClassMap(ids, Grid(600, 400, GSD)), DetectConfig())
+    assert out[0].category == "vehicle" and notes == {"vehicles_on_land_read_as_water_kept": 1}
+    ids[:] = WATER
+    out, _ = recategorise([car], ClassMap(ids, Grid(600, 400, GSD)), DetectConfig())
+    assert out[0].category == "boat"

@@ -5,8 +5,9 @@ answer instead of letting one stage silently veto the other.
   or boats beside water mark water, whatever the segmenter said there. The boats' footprints and the
   narrow gaps between them become water. A marina whose slate-grey water the segmenter read as pavement
   would otherwise lose every boat to the "boats need water" rule and become a car park.
-- **The water filters the detections** (``recategorise``): a "vehicle" standing in water is a small
-  boat (it keeps its box; its heading is left to the matcher), a vehicle on riprap is dropped, and a boat
+- **The water filters the detections** (``recategorise``): a "vehicle" standing in open water is a small
+  boat (it keeps its box; its heading is left to the matcher), one in a patch of "water" among land keeps
+  its category (the class map is what is wrong there), a vehicle on riprap is dropped, and a boat
   far from any water becomes a vehicle when it has a vehicle's size and stands on pavement, or is dropped
   (``detection.boats_off_water``).
 
@@ -30,6 +31,7 @@ CLUSTER_GAP_M = 4.0
 MIN_CLUSTER_BOATS = 3  # fewer boats far from water are no evidence of water (a boat on a trailer)
 SEED_MIN_SCORE = 0.4  # only fairly sure boats re-decide the class map
 TOUCH_WATER_M = 6.0  # a smaller cluster counts when water lies this close to it
+OPEN_WATER_AROUND = 0.7  # a "vehicle" in water is a boat when this much of its surroundings is water too
 
 
 @dataclass
@@ -90,18 +92,27 @@ def water_from_boats(dets: list[Detection], class_map: ClassMap, gsd_m: float) -
 
 
 def recategorise(dets: list[Detection], class_map: ClassMap, config: DetectConfig) -> tuple[list[Detection], dict]:
-    """Vehicles in water become boats (when their size fits a boat); vehicles on riprap are dropped."""
+    """A vehicle standing in water is decided by what surrounds it: in open water (its surroundings, out to
+    one box length, mostly water) it is a small boat; among land the class map under it is what is wrong
+    (a dark car park read as water) and it stays a vehicle (``fill_under_objects`` then re-decides the
+    ground under it). Vehicles on riprap are dropped (the learned net takes its blocks for cars)."""
     from .detection import values_under_box
 
-    out, to_boat, dropped = [], 0, 0
+    out, to_boat, dropped, kept = [], 0, 0, 0
     for d in dets:
         if d.category == "vehicle" and config.vehicle_max_wet > 0:
             under = values_under_box(class_map.ids, d)
             if under.size:
                 wet, rock = float(np.mean(under == WATER)), float(np.mean(under == ROCKS))
                 if wet >= config.vehicle_max_wet:
-                    to_boat += 1
-                    out.append(replace(d, category="boat", heading_known=False, heading_confidence=0.5))
+                    around = values_under_box(class_map.ids, replace(d, length_px=3 * d.length_px,
+                                                                     width_px=d.width_px + 2 * d.length_px))
+                    if float(np.mean(around == WATER)) >= OPEN_WATER_AROUND:
+                        to_boat += 1
+                        out.append(replace(d, category="boat", heading_known=False, heading_confidence=0.5))
+                    else:
+                        kept += 1
+                        out.append(d)
                     continue
                 if wet + rock >= config.vehicle_max_wet:
                     dropped += 1
@@ -112,6 +123,8 @@ def recategorise(dets: list[Detection], class_map: ClassMap, config: DetectConfi
         notes["vehicles_in_water_made_boats"] = to_boat
     if dropped:
         notes["vehicles_on_riprap_dropped"] = dropped
+    if kept:
+        notes["vehicles_on_land_read_as_water_kept"] = kept
     return out, notes
 
 
