@@ -294,8 +294,9 @@ def _confidence_figure(scene_dir: Path, shape: tuple[int, int] | None) -> str:
             col = _resize_to(col, shape, nearest=True)
         share = ", ".join(f"{n} {100 * np.mean(src == i):.1f} %" for i, n in enumerate(SOURCE_NAMES))
         figs.append(_img(_data_uri(_fit(col), "png"), "Who decided each pixel: grey both agree, blue the "
-                         "network outvoted the classical water rules, orange the rules outvoted the network, "
-                         f"magenta moored boats made it water ({share})"))
+                         "network (outvoting the classical segmenter, or alone at GSDs where the rules get no "
+                         "weight), orange the classical segmenter outvoted the network, magenta moored boats "
+                         f"made it water ({share})"))
     return '<div class="pair">' + "".join(figs) + "</div>" if figs else ""
 
 
