@@ -81,3 +81,20 @@ def test_a_car_in_a_patch_of_water_among_land_stays_a_car():
     ids[:] = WATER
     out, _ = recategorise([car], ClassMap(ids, Grid(600, 400, GSD)), DetectConfig())
     assert out[0].category == "boat"
+
+
+def test_cars_on_rocks_far_from_water_stay():
+    """Riprap lines the water: a car on "rocks" by the water goes (the net takes riprap blocks for cars),
+    one on "rocks" 40 m from any water is on textured ground the class map got wrong and stays."""
+    from coastforge.classes import ROCKS
+    from coastforge.consistency import recategorise
+
+    ids = np.full((400, 800), ASPHALT, np.uint8)
+    ids[:, :40] = WATER
+    ids[150:250, 40:80] = ROCKS  # a revetment by the water
+    ids[150:250, 600:700] = ROCKS  # cobbles in a street far inland
+    cm = ClassMap(ids, Grid(800, 400, GSD))
+    by_water = Detection("vehicle", 0.7, 60.0, 200.0, 4.6 / GSD, 1.9 / GSD, 90.0)
+    inland = Detection("vehicle", 0.7, 650.0, 200.0, 4.6 / GSD, 1.9 / GSD, 90.0)
+    out, notes = recategorise([by_water, inland], cm, DetectConfig())
+    assert out == [inland] and notes == {"vehicles_on_riprap_dropped": 1}

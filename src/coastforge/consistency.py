@@ -7,7 +7,8 @@ answer instead of letting one stage silently veto the other.
   would otherwise lose every boat to the "boats need water" rule and become a car park.
 - **The water filters the detections** (``recategorise``): a "vehicle" standing in open water is a small
   boat (it keeps its box; its heading is left to the matcher), one in a patch of "water" among land keeps
-  its category (the class map is what is wrong there), a vehicle on riprap is dropped, and a boat
+  its category (the class map is what is wrong there), a vehicle on riprap (rocks by the water) is dropped,
+  and a boat
   far from any water becomes a vehicle when it has a vehicle's size and stands on pavement, or is dropped
   (``detection.boats_off_water``).
 
@@ -95,10 +96,12 @@ def recategorise(dets: list[Detection], class_map: ClassMap, config: DetectConfi
     """A vehicle standing in water is decided by what surrounds it: in open water (its surroundings, out to
     one box length, mostly water) it is a small boat; among land the class map under it is what is wrong
     (a dark car park read as water) and it stays a vehicle (``fill_under_objects`` then re-decides the
-    ground under it). Vehicles on riprap are dropped (the learned net takes its blocks for cars)."""
+    ground under it). Vehicles on riprap (rocks within ``near_water_m`` of water) are dropped: the learned
+    net takes its blocks for cars."""
     from .detection import values_under_box
 
     out, to_boat, dropped, kept = [], 0, 0, 0
+    dist = None  # metres to the nearest water, computed when a vehicle stands on rocks
     for d in dets:
         if d.category == "vehicle" and config.vehicle_max_wet > 0:
             under = values_under_box(class_map.ids, d)
@@ -115,8 +118,14 @@ def recategorise(dets: list[Detection], class_map: ClassMap, config: DetectConfi
                         out.append(d)
                     continue
                 if wet + rock >= config.vehicle_max_wet:
-                    dropped += 1
-                    continue
+                    # riprap lines the water: "rocks" far from any water are textured ground the class
+                    # map got wrong (a street of parked cars), and the car stays
+                    if dist is None:
+                        gsd = float(class_map.grid.gsd_m)
+                        dist = cv2.distanceTransform((class_map.ids != WATER).view(np.uint8), cv2.DIST_L2, 3) * gsd
+                    if wet > 0 or float(values_under_box(dist, d).min()) <= config.near_water_m:
+                        dropped += 1
+                        continue
         out.append(d)
     notes = {}
     if to_boat:
