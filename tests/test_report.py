@@ -68,7 +68,18 @@ def _fake_outputs(scene, folder: Path):
                     for o in scene.objects)
     prov = {**scene.provenance, "matches": matches, "command": "coastforge generate image.png --gsd 0.13",
             "input": {"image": str(folder / "image.png")}, "library": "starter-kit",
-            "timings_s": {"segment": 1.5, "detect": 0.7, "terrain": 0.4, "total": 2.6}, "version": "0.1.0"}
+            "timings_s": {"segment": 1.5, "detect": 0.7, "terrain": 0.4, "total": 2.6}, "version": "0.1.0",
+            "warnings": [{"code": "boats_without_water", "message": "40 boats were found but only 1.0 % of the "
+                          "image is water.", "hint": "Try --set segment.learned_water=net."}],
+            "consistency": {"water_from_boats_m2": 120.5, "boat_clusters_made_water": 2}}
+    # the segmenter's confidence and who decided each pixel, as generate writes them
+    from coastforge.fsio import write_png
+
+    h, w = scene.classes.shape
+    write_png(folder / "segmentation" / "confidence.png", np.full((h, w), 200, np.uint8))
+    src = np.zeros((h, w), np.uint8)
+    src[:, : w // 4] = 3  # made water by moored boats
+    write_png(folder / "segmentation" / "source.png", src)
     return replace(scene, objects=objects, provenance=prov), len(objs)
 
 
@@ -130,6 +141,14 @@ def test_report_in_headless_chromium(built, tmp_path):
     assert info["orbit_changed"] > 0.01, info["orbit_changed"]  # dragging orbits the camera
     assert shot.is_file() and shot.stat().st_size > 10_000
     shutil.copy(shot, SCREENSHOT_COPY)
+
+
+def test_report_shows_the_self_check_and_the_segmentation_confidence(built):
+    page = built[0].read_text()
+    assert "This scene looks implausible" in page and "learned_water=net" in page
+    assert "Segmentation and detection reconciled: water from boats m2 120.5" in page
+    assert "Segmentation confidence" in page and "mean 78 %" in page
+    assert "Who decided each pixel" in page and "detections 25.0 %" in page
 
 
 def test_rebuild_and_errors(built, tmp_path):
