@@ -56,7 +56,7 @@ class GenerateResult:
     n_objects: dict
     exports: dict = field(default_factory=dict)
     report_path: Path | None = None
-    warnings: list = field(default_factory=list)  # selfcheck.Warning: the scene looks implausible
+    warnings: list = field(default_factory=list)  # selfcheck.SceneWarning: the scene looks implausible
 
 
 class _Timer:

@@ -129,22 +129,16 @@ def _thumb(path: Path) -> np.ndarray:
 
 
 def _groups(names: list[str], thumbs: np.ndarray, same: float = 0.95) -> dict[str, str]:
-    """Union near-duplicate images (thumbnail correlation >= ``same``); name -> group's first name."""
-    parent = list(range(len(names)))
+    """Near-duplicate images (thumbnail correlation >= ``same``, transitively) form a group, named after its
+    first member; name -> group name."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
 
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    corr = thumbs @ thumbs.T
-    ii, jj = np.nonzero(np.triu(corr >= same, 1))
-    for i, j in zip(ii, jj):
-        a, b = find(int(i)), find(int(j))
-        if a != b:
-            parent[max(a, b)] = min(a, b)
-    return {n: names[find(i)] for i, n in enumerate(names)}
+    _n, comp = connected_components(csr_matrix(thumbs @ thumbs.T >= same), directed=False)
+    first = {}
+    for i, c in enumerate(comp):
+        first.setdefault(c, names[i])
+    return {n: first[c] for n, c in zip(names, comp)}
 
 
 def _is_val_group(group: str) -> bool:

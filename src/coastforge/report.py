@@ -271,22 +271,21 @@ def _overview(image, top) -> str:
 
 def _confidence_figure(scene_dir: Path, shape: tuple[int, int] | None) -> str:
     """The segmentation's per-pixel confidence and which source decided each pixel, when written."""
+    import cv2
+
     from .fsio import read_png
+    from .segmentation.learned import SOURCE_NAMES
 
     seg = scene_dir / "segmentation"
     figs = []
     if (seg / "confidence.png").is_file():
         conf = read_png(seg / "confidence.png")
-        import cv2
-
         col = cv2.applyColorMap(255 - np.ascontiguousarray(conf, np.uint8), cv2.COLORMAP_INFERNO)[..., ::-1]
         if shape is not None:
             col = _resize_to(col, shape)
         figs.append(_img(_data_uri(_fit(col)), f"Segmentation confidence (dark = sure, light = unsure; mean "
                                               f"{np.mean(conf) / 2.55:.0f} %)"))
     if (seg / "source.png").is_file():
-        from .segmentation.learned import SOURCE_NAMES
-
         src = read_png(seg / "source.png")
         pal = np.array([[200, 200, 200], [40, 110, 220], [230, 130, 30], [220, 40, 160]], np.uint8)
         col = pal[np.clip(src, 0, 3)]

@@ -6,7 +6,6 @@ import shlex
 import sys
 
 import click
-from rich.markup import escape
 
 from .options import overwrite_option, pass_config, size_options
 
@@ -26,6 +25,7 @@ from .options import overwrite_option, pass_config, size_options
 def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwrite, config):
     """Turn IMAGE (PNG/JPEG with --gsd or --size-m, or a GeoTIFF) into a simulation scene in --out."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from ..errors import InputError

@@ -171,7 +171,6 @@ class LearnedSegmenter:
         if not lo <= gsd <= hi:
             # far outside the scales it was trained on the network sees things it never saw (and
             # upsampling a coarse image to the working GSD would be huge); the classical rules work at any GSD
-            self.last_choice = "classical (GSD outside the network's range)"
             cm = ClassicalSegmenter(cfg).segment(image, seed)
             return ClassMap(cm.ids, cm.grid, confidence=None, source=np.full((H, W), SOURCE_CLASSICAL, np.uint8))
         s = gsd / float(self.meta["work_gsd_m"])
@@ -179,19 +178,14 @@ class LearnedSegmenter:
         small = cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
         p = self.proba_small(small)
         net_ids = p.argmax(axis=2).astype(np.uint8)
-        if mode == "net" or (mode == "fused" and classical_weight(gsd) == 0.0):
-            self.last_choice = "network" + ("" if mode == "net" else " (no weight for the classical rules here)")
-            votes = None
-        else:
+        lw = classical_weight(gsd)
+        votes = None  # "net", or "fused" where the classical rules get no weight
+        if mode == "classical" or (mode == "fused" and lw > 0):
             votes = self._classical_votes(image, seed, (h, w))
-            lw = classical_weight(gsd)
             vote = CLASSICAL_WATER_VOTE * lw if mode == "fused" else 30.0  # "classical": its water always wins
             fuse_votes(p, votes, vote, lw)
-            self.last_choice = (f"network + classical segmenter (water vote {vote:g} in log-odds, classical land "
-                                f"weight {lw:.2f})")
         min_px = float(getattr(cfg, "learned_min_region_m2", 12.0)) / float(self.meta["work_gsd_m"]) ** 2
-        _merge_specks(p, min_px, fixed=p.argmax(axis=2) == WATER)
-        ids_small = p.argmax(axis=2).astype(np.uint8)
+        ids_small = _merge_specks(p, min_px)
         conf = (255.0 * p.max(axis=2)).astype(np.uint8)
         src = source_map(net_ids, ids_small, votes)
         if (w, h) == (W, H):
@@ -276,18 +270,19 @@ def _softmax(logits: np.ndarray) -> np.ndarray:
     return e.astype(np.float32, copy=False)
 
 
-def _merge_specks(p: np.ndarray, min_px: float, fixed: np.ndarray | None = None) -> None:
-    """Land specks under ``min_px`` working pixels take the class of the nearest larger region (in
-    place, as one-hot probabilities, so the later bilinear upsampling keeps smooth borders); ``fixed``
-    pixels (water) stay as they are."""
+def _merge_specks(p: np.ndarray, min_px: float) -> np.ndarray:
+    """Land specks under ``min_px`` working pixels take the class of the nearest larger region (in place, as
+    one-hot probabilities, so the later bilinear upsampling keeps smooth borders); water stays as it is.
+    Returns the class ids after the merge."""
     from .classical import _merge_small
 
     ids = p.argmax(axis=2).astype(np.uint8)
-    merged = _merge_small(ids, int(round(min_px)), fixed=np.zeros(ids.shape, bool) if fixed is None else fixed)
+    merged = _merge_small(ids, int(round(min_px)), fixed=ids == WATER)
     ch = merged != ids
     if ch.any():
         p[ch] = 0.0
         p[ch, merged[ch]] = 1.0
+    return merged
 
 
 def _upsample_argmax(p: np.ndarray, H: int, W: int, rows: int = 512) -> np.ndarray:

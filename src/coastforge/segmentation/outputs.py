@@ -3,8 +3,8 @@
 - ``classes.png``: uint8 class ids (DESIGN.md §2), the scene grid.
 - ``classes_preview.png``: the class palette blended over the image, for people.
 - ``confidence.png`` (when the backend gives one): uint8, 255 = sure of the pixel's class; and
-  ``source.png``: which source decided each pixel (0 both agree, 1 the network, 2 the classical rules;
-  legend in ``segmentation.json``).
+  ``source.png``: which source decided each pixel (0 both agree, 1 the network, 2 the classical rules,
+  3 moored boats made it water; legend in ``segmentation.json``).
 - ``weights/<class>.png``: one 8-bit weight map per class (Unreal landscape paint layers). Borders are
   softened by a Gaussian of ``segment.weight_blur_m`` metres; at every pixel the eight maps sum to
   exactly 255 (the rounding remainder goes to the pixel's own class).

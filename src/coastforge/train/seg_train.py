@@ -50,6 +50,7 @@ import numpy as np
 from ..classes import CLASS_NAMES, N_CLASSES, WATER
 from ..errors import InputError
 from ..rng import stage_rng, stage_seed
+from .detector_data import resample_to_gsd
 
 WORK_GSD_M = 0.3  # the network's working resolution (metres per pixel)
 FORMAT = "coastforge.learned_segmenter/1"
@@ -111,14 +112,11 @@ def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tup
     for it, gsd in items:
         if it.val:
             continue
-        rgb = realdata.read_rgb(it.path)
-        s = gsd / work_gsd_m
-        h, w = rgb.shape[:2]
-        nw, nh = max(16, int(round(w * s))), max(16, int(round(h * s)))
-        lab = np.full((nh, nw), IGNORE, np.uint8)
+        rgb, s = resample_to_gsd(realdata.read_rgb(it.path), gsd, work_gsd_m)
+        lab = np.full(rgb.shape[:2], IGNORE, np.uint8)
         for x0, y0, x1, y1 in it.boxes * s:
             lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = code
-        out.append((cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR), lab))
+        out.append((rgb, lab))
     if not out:
         raise InputError(f"no {which} training images under {realdata.SHARED}; --real {which} needs ../shared/data")
     return out
@@ -132,17 +130,13 @@ def load_dubai(work_gsd_m: float = WORK_GSD_M, val: bool = False) -> list[tuple[
     lut = np.full(256, IGNORE, np.uint8)
     lut[0], lut[1], lut[2], lut[3] = REAL_WATER, SET_PAVED, SET_VEGETATION, SET_BARE
     lut[realdata.BUILDING] = SET_PAVED  # roofs count as paved for now (never water or vegetation)
-    s = DUBAI_NOMINAL_GSD_M / work_gsd_m
     out = []
     for _name, img, mask, is_val in realdata.dubai_items():
         if is_val != val:
             continue
-        rgb = realdata.read_rgb(img)
+        rgb, _s = resample_to_gsd(realdata.read_rgb(img), DUBAI_NOMINAL_GSD_M, work_gsd_m)
         codes = lut[realdata.dubai_coarse(realdata.read_rgb(mask))]
-        h, w = codes.shape
-        nw, nh = int(round(w * s)), int(round(h * s))
-        out.append((cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_LINEAR if s > 1 else cv2.INTER_AREA),
-                    cv2.resize(codes, (nw, nh), interpolation=cv2.INTER_NEAREST)))
+        out.append((rgb, cv2.resize(codes, rgb.shape[1::-1], interpolation=cv2.INTER_NEAREST)))
     if not out:
         raise InputError(f"no Dubai tiles under {realdata.SHARED / 'real' / 'landcover_dubai'}; "
                          "--real dubai needs ../shared/data beside the project")
