@@ -8,8 +8,11 @@ caller says so (``--overwrite``).
 from __future__ import annotations
 
 import contextlib
+import json
 import os
+import shutil
 import tempfile
+import time
 from pathlib import Path
 from typing import Iterator
 
@@ -44,11 +47,16 @@ def _umask() -> int:
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+    try:
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+    except OSError as exc:
+        if exc.filename is None:  # a failed write names no file: name the one being written
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
     return path
 
 
@@ -155,3 +163,244 @@ def write_geotiff(path: str | os.PathLike, array: np.ndarray, transform, crs=Non
         with rasterio.open(tmp, "w", **profile) as dst:
             dst.write(a)
     return Path(path)
+
+
+# ---- all-or-nothing output folders ---------------------------------------------------------------------
+# A run writes a whole folder into a staging folder beside it and swaps it into place only when everything
+# it was asked for is complete. One writer per folder: a lock file beside it (flock, released by the kernel
+# when the process dies, so a killed run never leaves a stale lock).
+
+MARKER = ".coastforge-output.json"  # written into every folder a run completes: "coastforge made this"
+STAGING_SUFFIX = ".coastforge-staging"
+_OLD_SUFFIX = ".coastforge-old"
+
+
+def _siblings(out: Path) -> tuple[Path, Path, Path]:
+    """(lock file, staging folder, old folder) of the output folder ``out``."""
+    return (out.parent / f".{out.name}.coastforge-lock", out.parent / f"{out.name}{STAGING_SUFFIX}",
+            out.parent / f".{out.name}{_OLD_SUFFIX}")
+
+
+def os_error_message(exc: OSError, path: str | os.PathLike | None = None) -> str:
+    """A one-line, user-facing description of an OS error on ``path`` (what, where, what to do)."""
+    import errno
+
+    where = str(path or exc.filename or "a file of the output")
+    hints = {
+        errno.ENOSPC: "the disk is full; free some space or write somewhere else",
+        errno.EDQUOT: "the disk quota is exceeded; free some space or write somewhere else",
+        errno.EROFS: "the file system is read-only; choose a writable --out",
+        errno.EACCES: "permission denied; choose a folder you can write to",
+        errno.EPERM: "operation not permitted; choose a folder you can write to",
+        errno.ENOTDIR: "a part of this path is a file, not a folder; choose another path",
+        errno.EISDIR: "this is a folder where a file was expected; choose another path",
+        errno.ELOOP: "the path has a symbolic-link loop; choose another path",
+        errno.ENAMETOOLONG: "the path is too long; choose a shorter one",
+        errno.ENOENT: "it does not exist, or its folder does not accept new entries (a virtual file system?)",
+        errno.EEXIST: "it already exists",
+    }
+    hint = hints.get(exc.errno or -1, exc.strerror or str(exc))
+    return f"cannot write {where}: {hint}"
+
+
+def check_output_parent(out: Path) -> None:
+    """Refuse, before any work, an output path whose folder cannot be made or written."""
+    try:
+        if out.is_symlink() and not out.is_dir():
+            raise InputError(f"output {out} is a symbolic link that leads nowhere (broken, or a loop); "
+                             "choose another --out")
+        if out.exists() and not out.is_dir():
+            raise InputError(f"output {out} exists and is not a folder; choose a folder path with --out")
+        anc = out.parent
+        while not anc.exists():
+            if anc.is_symlink():  # a dangling link: mkdir would fail later
+                raise InputError(f"output {out}: {anc} is a broken symbolic link; choose another --out")
+            anc = anc.parent
+        if not anc.is_dir():
+            raise InputError(f"output {out}: {anc} is a file, not a folder; choose another --out")
+        if not os.access(anc, os.W_OK | os.X_OK):
+            raise InputError(f"output {out}: cannot write in {anc} (permission denied or read-only); "
+                             "choose a folder you can write to")
+    except OSError as exc:  # loops, names too long, /proc oddities
+        raise InputError(f"output {out}: {os_error_message(exc, out)}") from None
+
+
+def is_coastforge_output(path: Path) -> bool:
+    """A folder a coastforge run completed (its marker), or one in the older layouts (a scene or library)."""
+    return any((path / n).is_file() for n in (MARKER, "scene.json", "library.json", "segmentation.json"))
+
+
+class FolderLock:
+    """One writer per output folder: an exclusive, non-blocking flock on a file beside it."""
+
+    def __init__(self, out: Path, command: str = ""):
+        self.out, self.command = out, command
+        self.path = _siblings(out)[0]
+        self.fd: int | None = None
+
+    def acquire(self) -> "FolderLock":
+        import fcntl
+        import time
+
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                other = b""
+                try:
+                    other = os.pread(fd, 4096, 0)
+                finally:
+                    os.close(fd)
+                raise OutputBusyError(self.out, other) from None
+            # the holder may have removed the file between our open and our lock: lock the file on disk
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        info = {"pid": os.getpid(), "command": self.command or "coastforge", "started": time.strftime("%Y-%m-%d %H:%M:%S")}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps(info).encode(), 0)
+        self.fd = fd
+        return self
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        try:
+            self.path.unlink(missing_ok=True)  # while still holding it: see acquire's inode check
+        except OSError:
+            pass
+        os.close(self.fd)
+        self.fd = None
+
+    def __enter__(self) -> "FolderLock":
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+class OutputBusyError(OutputExistsError):
+    """Another coastforge run is writing to the same output."""
+
+    def __init__(self, out: Path, holder: bytes = b""):
+        who = "another coastforge run"
+        try:
+            info = json.loads(holder.decode() or "{}")
+            who = f"another coastforge run (pid {info['pid']}, started {info['started']}: {info['command']})"
+        except (ValueError, KeyError, UnicodeDecodeError):
+            pass
+        super().__init__(f"{who} is writing to {out}; wait for it to finish, or choose another --out")
+
+
+def _recover(out: Path) -> list[str]:
+    """Undo what a killed run left beside ``out`` (the lock is held): a swap cut half-way is rolled back,
+    a staging folder is removed. Returns notes for the user."""
+    _lock, staging, old = _siblings(out)
+    notes = []
+    if old.exists():
+        if not out.exists():  # killed between the two renames of a swap: the previous folder comes back
+            os.rename(old, out)
+            notes.append(f"restored {out} from an interrupted run")
+        else:
+            shutil.rmtree(old, ignore_errors=True)
+    if staging.exists():
+        shutil.rmtree(staging)
+        notes.append(f"removed {staging}, left by an earlier run that failed or was stopped")
+    return notes
+
+
+def _hardlink_copy(src: Path, dst: Path) -> None:
+    """``dst`` as a copy of folder ``src`` whose files are hard links (instant, no extra space); atomic
+    writes replace a linked file by a new one, so the original is never touched. Falls back to copies."""
+    def link(s, d):
+        try:
+            os.link(s, d)
+        except OSError:
+            shutil.copy2(s, d)
+
+    shutil.copytree(src, dst, copy_function=link, symlinks=True)
+
+
+def _written_into(staging: Path, out: Path) -> bool:
+    """Whether the run wrote any file into ``staging``: one that ``out`` lacks, or holds as another file
+    (the staging copy of an update shares its unchanged files with ``out`` as hard links)."""
+    for root, _dirs, files in os.walk(staging):
+        for f in files:
+            p = os.path.join(root, f)
+            twin = out / os.path.relpath(p, staging)
+            try:
+                if not twin.exists() or not os.path.samefile(p, twin):
+                    return True
+            except OSError:
+                return True
+    return False
+
+
+def _swap_in(staging: Path, out: Path) -> None:
+    old = _siblings(out)[2]
+    if out.exists():
+        os.rename(out, old)
+        os.rename(staging, out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.rename(staging, out)
+
+
+@contextlib.contextmanager
+def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bool = False, command: str = "",
+                  notes: list[str] | None = None) -> Iterator[Path]:
+    """Write the folder ``out`` all-or-nothing; yields the staging folder to write into.
+
+    ``update=False``: the run makes the whole folder. An existing non-empty ``out`` is refused unless
+    ``overwrite``, and then replaced whole (no stale file survives) - but only if coastforge made it.
+    ``update=True``: the run changes an existing folder (a scene's exports, its terrain): staging starts
+    as a hard-linked copy of it. Either way ``out`` changes only when the block completes; a failure or a
+    kill leaves it as it was, plus the staging folder, which the next run removes. ``notes`` receives what
+    recovery did."""
+    out = Path(out)
+    check_output_parent(out)
+    if out.is_symlink():  # a link to a folder: write the folder it names (swapping would replace the link)
+        out = out.resolve()
+    if not update and out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise OutputExistsError(f"output folder {out} exists and is not empty; pass --overwrite to replace "
+                                    "it, or choose another --out")
+        if not is_coastforge_output(out):
+            raise OutputExistsError(f"output folder {out} holds files coastforge did not write; --overwrite "
+                                    "replaces only a folder an earlier run made: choose another --out")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(os_error_message(exc, out.parent)) from None
+    staging = _siblings(out)[1]
+    try:
+        lock = FolderLock(out, command).acquire()
+    except OSError as exc:
+        if isinstance(exc, OutputExistsError):
+            raise
+        raise InputError(os_error_message(exc, out)) from None
+    try:
+        (notes if notes is not None else []).extend(_recover(out))
+        if update and out.is_dir():
+            _hardlink_copy(out, staging)
+        else:
+            staging.mkdir()
+        try:
+            yield staging
+        except BaseException as exc:
+            if staging.exists() and not _written_into(staging, out):  # failed before writing: nothing to keep
+                shutil.rmtree(staging, ignore_errors=True)
+            elif staging.exists():
+                exc.add_note(f"{out} is unchanged; the partial output is in {staging} (the next run into {out} "
+                             "removes it)")
+            raise
+        atomic_write_text(staging / MARKER, json.dumps({"tool": "coastforge", "command": command,
+                                                        "completed": time.strftime("%Y-%m-%d %H:%M:%S")}) + "\n")
+        _swap_in(staging, out)
+    finally:
+        lock.release()

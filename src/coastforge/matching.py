@@ -16,6 +16,8 @@ scale and centre offset) is recorded.
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from dataclasses import dataclass
 
@@ -230,7 +232,8 @@ def _without_context_blocks(library, vecs: np.ndarray) -> np.ndarray:
 
 
 def match_detections(image: GeoImage, dets: list[Detection], library, config: MatchConfig, seed: int,
-                     heading_min_evidence: float = 0.03, heading_trust: float = 0.7) -> list[MatchDecision]:
+                     heading_min_evidence: float = 0.03, heading_trust: float = 0.7,
+                     fallback=None) -> list[MatchDecision]:
     """Choose an asset and a final yaw for every boat, vehicle and buoy detection.
 
     With ``config.shape`` (the default) every asset of the category is fitted to the crop by shape (see
@@ -241,6 +244,16 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
     todo = [(i, d) for i, d in enumerate(dets) if d.category in ASSET_CATEGORIES_FOR]
     if not todo:
         return []
+    if fallback is not None:  # categories the library lacks are matched against ``fallback`` (the starter kit)
+        have = {a.category for a in library.assets}
+        lacking = {d.category for _, d in todo if not have.intersection(ASSET_CATEGORIES_FOR[d.category])}
+        if lacking:
+            out = []
+            for lib, want in ((library, False), (fallback, True)):
+                idx = [i for i, d in enumerate(dets) if (d.category in lacking) == want]
+                out += [dataclasses.replace(m, index=idx[m.index]) for m in match_detections(
+                    image, [dets[i] for i in idx], lib, config, seed, heading_min_evidence, heading_trust)]
+            return sorted(out, key=lambda m: m.index)
     if config.mode not in ("best", "sample"):
         raise LibraryError(f"match.mode = {config.mode!r}; valid modes: best, sample")
     crops, gsds = [], []

@@ -23,7 +23,7 @@ import numpy as np
 from . import __version__
 from .classes import PAVED, WATER
 from .config import Config
-from .fsio import atomic_write_text, prepare_output_dir
+from .fsio import atomic_write_text
 from .scene import Scene, SceneObject, save_scene, save_scene_rasters
 from .types import ClassMap, Detection, GeoImage
 
@@ -57,6 +57,7 @@ class GenerateResult:
     exports: dict = field(default_factory=dict)
     report_path: Path | None = None
     warnings: list = field(default_factory=list)  # selfcheck.SceneWarning: the scene looks implausible
+    notes: tuple = ()  # what the output folder's recovery did (an earlier run's leftovers removed)
 
 
 class _Timer:
@@ -130,6 +131,30 @@ def _load_library(path: str | None):
     return lib_mod.Library.load(path) if path else lib_mod.default_library()
 
 
+def fallback_kit(library, path: str | None):
+    """``(starter kit, categories it stands in for)`` when the user's library (``path``) lacks asset
+    categories a scene may need, else ``(None, ())``: a missing category never aborts a run."""
+    from .classes import ASSET_CATEGORIES
+
+    if path is None:
+        return None, ()
+    have = {a.category for a in library.assets}
+    missing = tuple(c for c in ASSET_CATEGORIES if c not in have)
+    if not missing:
+        return None, ()
+    from .assets.library import default_library
+
+    return default_library(), missing
+
+
+def fallback_warning(path: str | None, missing: tuple[str, ...]):
+    from .selfcheck import SceneWarning
+
+    return SceneWarning("library_fallback", f"The library {path} has no {', '.join(missing)} asset; the starter "
+                        "kit's were used for these categories.",
+                        "Add such assets to the library (coastforge library build) to use your own.")
+
+
 def _pier_assets(library):
     piers = [a for a in library.assets if a.category == "pier"]
     if not piers:
@@ -146,11 +171,13 @@ def _pier_assets(library):
     return walk, finger
 
 
-def place_decisions(decisions, dets: list[Detection], library, grid, config: Config, height) -> list:
-    """Scene objects for the matched detections, ids numbered per category (``boat_000``, ...)."""
+def place_decisions(decisions, dets: list[Detection], library, grid, config: Config, height, kit=None) -> list:
+    """Scene objects for the matched detections, ids numbered per category (``boat_000``, ...); ``kit``:
+    the fallback library of the categories ``library`` lacks."""
     from .placement import place
 
-    assets = {a.id: a for a in library.assets}
+    assets = {a.id: a for a in (kit.assets if kit is not None else ())}
+    assets.update({a.id: a for a in library.assets})
     objects = []
     counters: dict[str, int] = {}
     for dec in decisions:
@@ -191,10 +218,14 @@ def detection_footprints(dets: list[Detection], grid) -> list[BoxFootprint]:
     return out
 
 
-def assets_by_category(library) -> dict[str, list[str]]:
+def assets_by_category(library, kit=None) -> dict[str, list[str]]:
+    """Asset ids per category; the categories ``library`` lacks come from ``kit`` (if given)."""
     out: dict[str, list[str]] = {}
     for a in library.assets:
         out.setdefault(a.category, []).append(a.id)
+    for a in (kit.assets if kit is not None else ()):
+        if a.category not in {b.category for b in library.assets}:
+            out.setdefault(a.category, []).append(a.id)
     return out
 
 
@@ -217,24 +248,70 @@ def scene_provenance(req: GenerateRequest, config: Config, library, gsd_m: float
 
 
 def run_generate(req: GenerateRequest, config: Config, progress: Progress | None = None) -> GenerateResult:
+    """Run the whole pipeline into ``req.out``, all-or-nothing: everything is written into a staging folder
+    beside it and swapped into place only once the scene, its exports and its report are complete (a
+    failed or killed run leaves ``req.out`` as it was). Inputs are checked before the first write."""
     from .io import read_image
 
     from . import tiling
+    from .fsio import output_folder
 
-    if tiling.needs_tiling(req.image):  # large orthophotos run by windows in bounded memory
-        return tiling.generate_tiled(req, config, progress)
-    out = prepare_output_dir(req.out, req.overwrite)
-    timer = _Timer(progress)
-    seed = config.seed
-    with timer.stage("read"):
-        image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
-        grid = image.grid
-    side = _SideProcess.start(grid.width_px * grid.height_px) if req.side_process else None
-    try:
-        return _run_chain(req, config, image, out, timer, side)
-    finally:
-        if side is not None:
-            side.close()
+    tiled = tiling.needs_tiling(req.image)
+    check_library_path(req.library)
+    image = None
+    t_read = None
+    if not tiled:  # the image is read (and checked) before anything is written
+        t0 = time.perf_counter()
+        image = read_image(req.image, req.gsd_m, req.size_m, config.io)
+        t_read = time.perf_counter() - t0
+    notes: list[str] = []
+    with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes) as stage:
+        sreq = replace(req, out=str(stage), overwrite=False)
+        if tiled:  # large orthophotos run by windows in bounded memory
+            res = tiling.generate_tiled(sreq, config, progress)
+        else:
+            assert image is not None
+            timer = _Timer(progress)
+            timer.t["read"], timer.cpu["read"] = round(t_read or 0.0, 3), round(t_read or 0.0, 3)
+            side = _SideProcess.start(image.grid.width_px * image.grid.height_px) if req.side_process else None
+            try:
+                res = _run_chain(sreq, config, image, stage, timer, side)
+            finally:
+                if side is not None:
+                    side.close()
+    return _relocated(res, stage, Path(req.out), notes)
+
+
+def check_library_path(path: str | None) -> None:
+    """Refuse, before any work, a ``--library`` that does not exist or is not a library."""
+    if path is None:
+        return
+    from .errors import LibraryError
+
+    p = Path(path)
+    if not p.exists():
+        raise LibraryError(f"--library {p} does not exist; build one with `coastforge library build SRC --out "
+                           f"{p}`, or leave --library out to use the starter kit")
+    if not (p / "library.json").is_file() and not (p.is_file() and p.name == "library.json"):
+        raise LibraryError(f"--library {p} is not an asset library (no library.json in it); build one with "
+                           "`coastforge library build`, or leave --library out to use the starter kit")
+
+
+def _relocated(res: GenerateResult, stage: Path, out: Path, notes: list[str]) -> GenerateResult:
+    """``res`` with its paths moved from the staging folder to the final one."""
+    def mv(p):
+        if isinstance(p, (str, Path)):
+            try:
+                return out / Path(p).relative_to(stage)
+            except ValueError:
+                return p
+        if isinstance(p, list):
+            return [mv(x) for x in p]
+        return p
+
+    return replace(res, scene_path=mv(res.scene_path), out_dir=out, notes=tuple(notes),
+                   exports={k: mv(v) for k, v in res.exports.items()},
+                   report_path=mv(res.report_path) if res.report_path else None)
 
 
 def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path, timer: _Timer,
@@ -290,7 +367,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             bg.result("library")  # the side process loads the library only once this one has it (built)
             bg.submit("match", side.run, _match_job, req.library, image, dets, config.match, seed)
         else:
-            bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed))
+            bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed,
+                                                        fallback=fallback_kit(bg.result("library"), req.library)[0]))
         _write_segment_outputs(bg, out, image, class_map, dets, config, seed, side)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
@@ -300,19 +378,24 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             bg.submit("report_terrain", _report_terrain, class_map.ids, height.z_m, grid, seed)
         with timer.stage("library"):  # the time the chain waited for the library, not its load time
             library = bg.result("library")
+            kit, missing = fallback_kit(library, req.library)
+            if missing:
+                warnings.append(fallback_warning(req.library, missing))
         with timer.stage("piers"):
             walk, finger = _pier_assets(library)
+            if walk is None and kit is not None:
+                walk, finger = _pier_assets(kit)
             pier_report: dict = {"n_structures": 0}
             pier_objects: list = []
             if walk is not None:
                 pr = build_piers(dets, class_map, walk, finger, config.piers)
                 pier_objects, pier_report = list(pr.objects), pr.report
         with timer.stage("vegetation"):  # while the matcher works: clear of the piers and the detected boxes
-            veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library),
+            veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library, kit),
                           pier_objects + detection_footprints(dets, grid), config.vegetation, seed)
         with timer.stage("match"):  # waiting for the matcher, then placement on the terrain
             decisions = bg.result("match")
-            objects = place_decisions(decisions, dets, library, grid, config, height) + pier_objects
+            objects = place_decisions(decisions, dets, library, grid, config, height, kit) + pier_objects
         if req.report:  # ... and the meshes it shows (loading them holds the GIL: not beside the stages above)
             plants = veg.vegetation.asset_id if veg.vegetation is not None else ()
             bg.submit("report_meshes", _load_meshes, library, [o.asset_id for o in objects] + [str(a) for a in plants])
@@ -519,7 +602,8 @@ def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection],
     """``match_detections`` where the library is this process's (a module-level function for the side process)."""
     from .matching import match_detections
 
-    return match_detections(image, dets, _library_here(library_path), config, seed)
+    lib = _library_here(library_path)
+    return match_detections(image, dets, lib, config, seed, fallback=fallback_kit(lib, library_path)[0])
 
 
 def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:

@@ -631,7 +631,7 @@ def needs_tiling(image: str | Path, threshold_px: int = TILING_THRESHOLD_PX) -> 
         return False
 
 
-def _match_tiled(src: Source, dets: list[Detection], library, config: Config, tile_px: int):
+def _match_tiled(src: Source, dets: list[Detection], library, config: Config, tile_px: int, kit=None):
     """``match_detections`` per tile: each group of detections gets a window just big enough for its crops."""
     from .matching import ASSET_CATEGORIES_FOR, match_detections
 
@@ -650,7 +650,7 @@ def _match_tiled(src: Source, dets: list[Detection], library, config: Config, ti
         c1, r1 = int(min(W, math.ceil(boxes[:, 0].max() + pad))), int(min(H, math.ceil(boxes[:, 1].max() + pad)))
         img = read_window(src, Window(c0, r0, c1 - c0, r1 - r0))
         local = [_shift(dets[k], -c0, -r0) for k in idx]
-        for dec in match_detections(img, local, library, config.match, config.seed):
+        for dec in match_detections(img, local, library, config.match, config.seed, fallback=kit):
             decisions.append(replace(dec, index=idx[dec.index]))
         del img
     decisions.sort(key=lambda m: m.index)
@@ -670,8 +670,9 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     resolution, then terrain, matching, piers and vegetation on a scene grid of at most ``scene_max_px`` per
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
-    from .fsio import atomic_write_text, prepare_output_dir, write_png
+    from .fsio import atomic_write_text, write_png
     from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, _with_timings,
+                           fallback_kit, fallback_warning,
                            assets_by_category, fill_under_objects, make_report, object_counts, place_decisions,
                            scene_provenance, write_scene_files)
     from .scene import save_scene
@@ -684,7 +685,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     _check_tiling(tile_px, overlap_px)
     if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
         raise ConfigError(f"scene_max_px = {scene_max_px!r} must be an integer ≥ 127 (e.g. 4096)")
-    out = prepare_output_dir(req.out, req.overwrite)
+    out = Path(req.out)  # the staging folder of run_generate
+    out.mkdir(parents=True, exist_ok=True)
     timer = _Timer(progress)
     seed = config.seed
     with timer.stage("read"):
@@ -726,17 +728,21 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain)
         with timer.stage("library"):  # the time the chain waited for the library
             library = bg.result("library")
+            kit, missing = fallback_kit(library, req.library)
+            warns = [fallback_warning(req.library, missing)] if missing else []
         with timer.stage("match"):
-            decisions = _match_tiled(src, dets, library, config, tile_px)
-            objects = place_decisions(decisions, dets, library, grid, config, height)
+            decisions = _match_tiled(src, dets, library, config, tile_px, kit)
+            objects = place_decisions(decisions, dets, library, grid, config, height, kit)
         with timer.stage("piers"):
             walk, finger = _pier_assets(library)
+            if walk is None and kit is not None:
+                walk, finger = _pier_assets(kit)
             pier_report: dict = {"n_structures": 0}
             if walk is not None:
                 pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
                 objects.extend(pier_objects)
         with timer.stage("vegetation"):
-            veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library), objects, config.vegetation,
+            veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library, kit), objects, config.vegetation,
                           seed)
         with timer.stage("write"):
             # the transform is the scene rasters' (coarser than the input when the image was downsampled)
@@ -745,7 +751,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
                 scene_provenance(
                     req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
                     tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
-                           "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m}))
+                           "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m},
+                    warnings=[w.to_dict() for w in warns]))
     exports = {}
     if req.exports:
         with timer.stage("export"):
@@ -758,5 +765,5 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)  # the JSON last
     report_path = make_report(req, out, timings)
     return GenerateResult(scene_path, out, timings, object_counts(objects, len(veg.vegetation)), exports,
-                          report_path)
+                          report_path, warns)
 

@@ -1003,6 +1003,11 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
                 "weights": str(Path(weights).resolve()) if weights is not None else None}
     emb_hash = _sha(emb.name, emb.settings, list(config.embed_scales))
     prev_assets = {a["id"]: a for a in (prev_doc or {}).get("assets", [])}
+    dropped = sorted(set(prev_assets) - {s.id for s in specs})
+    if dropped and not overwrite:  # an update may add and refresh assets; removing some needs --overwrite
+        raise OutputExistsError(f"{out} holds {len(dropped)} asset(s) that SRC no longer has "
+                                f"({', '.join(dropped[:5])}{', ...' if len(dropped) > 5 else ''}); pass "
+                                "--overwrite to remove them from the library, or choose another --out")
     prev_vectors = prev_index.vectors() if prev_index is not None else None
     # which assets need work
     records: dict[str, dict] = {}

@@ -5,6 +5,7 @@ so ``coastforge --help`` stays instant. A ``CoastforgeError`` is printed as a on
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
 import click
@@ -56,12 +57,60 @@ class LazyGroup(click.Group):
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
         except CoastforgeError as exc:
-            click.echo(f"Error: {exc}", err=True)
+            _echo_error(str(exc), exc)
             ctx.exit(2)
-        except KeyboardInterrupt:
-            click.echo("Interrupted; files already written are complete and kept.", err=True)
+        except KeyboardInterrupt as exc:
+            notes = getattr(exc, "__notes__", None)
+            click.echo("Interrupted; " + (notes[-1] if notes else "files already written are complete and kept."),
+                       err=True)
             ctx.exit(130)
+        except MemoryError as exc:
+            _echo_error("out of memory; try a smaller image, a coarser --gsd, or a machine with more memory", exc)
+            ctx.exit(2)
+        except OSError as exc:  # no space, read-only, permission, not a folder, loops: name the path
+            from ..fsio import os_error_message
+
+            _echo_error(os_error_message(exc), exc)
+            ctx.exit(2)
+        except Exception as exc:  # a bug of ours: one line here, the traceback in a log file
+            if os.environ.get("COASTFORGE_DEBUG"):
+                raise
+            log = _write_crash_log(exc)
+            _echo_error(f"unexpected {type(exc).__name__}: {exc}", exc)
+            click.echo(f"This is a coastforge bug; the traceback is in {log}. Please report it with that file.",
+                       err=True)
+            ctx.exit(3)
+
+
+def _echo_error(message: str, exc: BaseException) -> None:
+    """One line for the error, then any notes (e.g. where a failed run left its partial output)."""
+    click.echo(f"Error: {message}", err=True)
+    for note in getattr(exc, "__notes__", ()) or ():
+        click.echo(f"  {note}", err=True)
+
+
+def _write_crash_log(exc: BaseException) -> str:
+    """Write the traceback of an unexpected error to a log file; returns its path."""
+    import tempfile
+    import time
+    import traceback
+    from pathlib import Path
+
+    text = (f"coastforge {__version__}\ncommand: {' '.join(sys.argv)}\n\n"
+            + "".join(traceback.format_exception(exc)))
+    name = f"crash-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.log"
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "coastforge" / "logs"
+    for folder in (base, Path(tempfile.gettempdir())):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text, encoding="utf-8")
+            return str(folder / name)
+        except OSError:
+            continue
+    return "(no writable folder for the log; run again with COASTFORGE_DEBUG=1 to see it)"
 
 
 import importlib.util  # noqa: E402  (used by LazyGroup.list_commands)

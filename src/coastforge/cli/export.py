@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import overwrite_option, pass_config
+from .options import overwrite_option, pass_config, staged
 
 
 @click.command("export")
@@ -26,10 +26,24 @@ def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
         from ..assets.library import Library
 
         library = Library.load(library_dir)
-    written = export_scene(scene_dir, formats or config.export.formats, out_dir=out_dir, overwrite=overwrite,
-                           config=config.export, library=library)
-    import os
+    from pathlib import Path
 
+    from ..export import parse_formats
+
+    fmts = parse_formats(formats or config.export.formats)  # checked before anything is written
+    src = Path(scene_dir)
+    target = Path(out_dir) if out_dir is not None else (src.parent if src.is_file() else src)
+    if not overwrite:  # before any work: an existing export is replaced only on request
+        from ..errors import OutputExistsError
+
+        done = [f for f in fmts if (target / f).is_dir() and any((target / f).iterdir())]
+        if done:
+            raise OutputExistsError(f"{target / done[0]} exists; pass --overwrite to replace the {done[0]} "
+                                    "export, or choose another --out")
+    # all-or-nothing: every format is written into a staging copy of the target, swapped in when all are done
+    with staged(target, update=True) as stage:
+        scene_src = src if out_dir is not None else stage / src.name if src.is_file() else stage
+        written = export_scene(scene_src, fmts, out_dir=stage, overwrite=overwrite, config=config.export,
+                               library=library)
     for fmt, paths in written.items():
-        folder = os.path.commonpath([str(p.parent) for p in paths]) if paths else "-"
-        click.echo(f"{fmt}: {len(paths)} files under {folder}")
+        click.echo(f"{fmt}: {len(paths)} files under {target / fmt}")

@@ -6,7 +6,7 @@ import json
 
 import click
 
-from .options import overwrite_option, pass_config
+from .options import overwrite_option, pass_config, staged
 
 
 @click.group()
@@ -32,11 +32,15 @@ def build(src, out, embedder, weights, strict, thumbs, workers, as_json, overwri
     tags). Only assets whose model or settings changed are re-rendered."""
     from ..assets.library import build_library
 
+    from ..assets.library import Library
+
     say = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
-    lib = build_library(src, out, embedder=embedder or config.library.embedder, weights=weights, strict=strict,
-                        config=config.library, from_thumbnails=thumbs, overwrite=overwrite, workers=workers,
-                        progress=say)
-    r = lib.build_report
+    with staged(out, update=True) as stage:  # all-or-nothing: the library changes only once the build is done
+        built = build_library(src, stage, embedder=embedder or config.library.embedder, weights=weights,
+                              strict=strict, config=config.library, from_thumbnails=thumbs, overwrite=overwrite,
+                              workers=workers, progress=say)
+    r = built.build_report
+    lib = Library.load(out, weights=weights)
     if as_json:
         click.echo(json.dumps({
             "library": str(lib.root), "assets": [a.id for a in lib.assets], "rendered": list(r.rendered),

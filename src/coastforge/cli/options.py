@@ -28,7 +28,8 @@ def config_options(f):
 
 
 def overwrite_option(f):
-    return click.option("--overwrite", is_flag=True, help="Replace existing outputs.")(f)
+    return click.option("--overwrite", is_flag=True,
+                        help="Replace existing outputs (a whole output folder, if an earlier run made it).")(f)
 
 
 def build_config(preset, config_path, sets, seed):
@@ -46,3 +47,24 @@ def pass_config(f):
         return f(*args, config=build_config(preset, config_path, sets, seed), **kw)
 
     return wrapper
+
+
+def staged(out, *, overwrite: bool = False, update: bool = False):
+    """``fsio.output_folder`` for a command: all-or-nothing writes into ``out``, one writer at a time; what
+    recovery did (an earlier run's leftovers) is printed."""
+    import contextlib
+    import shlex
+    import sys
+
+    from ..fsio import output_folder
+
+    @contextlib.contextmanager
+    def run():
+        notes: list[str] = []
+        with output_folder(out, overwrite=overwrite, update=update, notes=notes,
+                           command=shlex.join(["coastforge", *sys.argv[1:]])) as stage:
+            for n in notes:
+                click.echo(f"note: {n}", err=True)
+            yield stage
+
+    return run()

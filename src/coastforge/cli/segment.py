@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import overwrite_option, pass_config, size_options
+from .options import overwrite_option, pass_config, size_options, staged
 
 
 @click.command()
@@ -32,8 +32,9 @@ def segment(image, gsd, size_m, out_dir, backend, labels, mapping, weights, over
         options = {"weights": weights, "mapping": mapping}
     elif labels or weights:
         raise click.UsageError("--labels goes with --backend labels, --weights with --backend onnx")
-    res = segment_file(image, out_dir, gsd_m=gsd, size_m=tuple(size_m) if size_m else None, config=config,
-                       backend=name, overwrite=overwrite, **options)
+    with staged(out_dir, overwrite=overwrite) as stage:  # all-or-nothing: out_dir changes only when complete
+        res = segment_file(image, stage, gsd_m=gsd, size_m=tuple(size_m) if size_m else None, config=config,
+                           backend=name, overwrite=True, **options)
     fr = res["class_fractions"]
     click.echo(f"wrote {out_dir}: " + ", ".join(f"{k} {v:.1%}" for k, v in fr.items() if v > 0))
 

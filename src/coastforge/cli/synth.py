@@ -17,18 +17,27 @@ import click
 @click.option("--library", type=click.Path(), default=None,
               help="Place and render this asset library's assets (each layout role filled by the library "
                    "asset of the same category and closest size) instead of the starter kit's.")
-@click.option("--overwrite", is_flag=True, help="Replace coastforge's files in a non-empty --out folder.")
+@click.option("--overwrite", is_flag=True, help="Replace a non-empty --out folder that an earlier run made.")
 def synth(preset: str, seed: int, out_dir: str, gsd: str, library: str | None, overwrite: bool) -> None:
     """Synthesize a ground-truth coastal level and render its aerial images.
 
     Writes OUT/truth.json (a scene file; objects have source "synthetic") with its rasters, one
     image per GSD (image_0.10m.png, ...) and OUT/inputs.json listing the images and their GSDs.
     """
-    from ..synth import synth_many
+    from pathlib import Path
 
-    for r in synth_many(preset, seed, out_dir, gsd, library, overwrite):
+    from ..synth import synth_many
+    from .options import staged
+
+    with staged(out_dir, overwrite=overwrite) as stage:  # all-or-nothing: every level, or none
+        results = synth_many(preset, seed, stage, gsd, library, overwrite=True)
+
+    def final(p) -> Path:  # a path in the staging folder -> where it is now
+        return Path(out_dir) / Path(p).relative_to(stage)
+
+    for r in results:
         t = " ".join(f"{k} {v:.1f}s" for k, v in r.timings)
         click.echo(f"{r.preset}: {r.n_objects} objects, {r.n_vegetation} plants/rocks, "
-                   f"{r.extent_m[0]:.0f}x{r.extent_m[1]:.0f} m -> {r.truth_path} ({t})")
+                   f"{r.extent_m[0]:.0f}x{r.extent_m[1]:.0f} m -> {final(r.truth_path)} ({t})")
         for p, g in zip(r.image_paths, r.gsds):
-            click.echo(f"  image {g:g} m/px: {p}")
+            click.echo(f"  image {g:g} m/px: {final(p)}")

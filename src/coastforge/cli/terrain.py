@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import overwrite_option, pass_config
+from .options import overwrite_option, pass_config, staged
 
 
 @click.command()
@@ -39,8 +39,13 @@ def terrain(scene_dir, dems, dem_crs, dem_origin, image_path, backend, weights, 
     if backend:
         config = dataclasses.replace(config, terrain=dataclasses.replace(config.terrain, backend=backend))
     opts = {"weights": weights} if weights else {}
-    res = terrain_scene(scene_dir, config, dems=dems, placement=placement, image_path=image_path,
-                        backend_opts=opts, overwrite=overwrite)
+    from pathlib import Path
+
+    src = Path(scene_dir)
+    folder = src.parent if src.is_file() else src
+    with staged(folder, update=True) as stage:  # the scene changes only once the new terrain is complete
+        res = terrain_scene(stage / src.name if src.is_file() else stage, config, dems=dems, placement=placement,
+                            image_path=image_path, backend_opts=opts, overwrite=overwrite)
     d = res.diagnostics
     z = res.height.z_m
     click.echo(f"terrain: {z.shape[1]}x{z.shape[0]} px, "

@@ -292,7 +292,7 @@ def detect_file(image_path: str | Path, out: str | Path, gsd_m: float | None = N
     import time
 
     from ..config import Config
-    from ..fsio import atomic_write_text, check_writable_file
+    from ..fsio import atomic_write_bytes, atomic_write_text, check_writable_file
     from ..io import read_image
 
     cfg = config or Config()
@@ -315,8 +315,15 @@ def detect_file(image_path: str | Path, out: str | Path, gsd_m: float | None = N
     dt = time.perf_counter() - t0
     prov = {"backend": name, "seconds": round(dt, 3), "image": str(image_path),
             "segmenter": cfg.segment.backend if segment else None}
-    atomic_write_text(out, detections_to_json(dets, image.grid.gsd_m, (image.grid.width_px, image.grid.height_px),
-                                              prov))
+    text = detections_to_json(dets, image.grid.gsd_m, (image.grid.width_px, image.grid.height_px), prov)
+    # both outputs are made in memory first, then written back to back: a failure never pairs a new JSON
+    # with an old overlay
+    png = None
     if overlay is not None:
-        write_overlay(overlay, image.rgb, dets)
+        from ..fsio import png_bytes
+
+        png = png_bytes(draw_overlay(image.rgb, dets, thickness=max(1, round(max(image.rgb.shape[:2]) / 1500))))
+    if png is not None:
+        atomic_write_bytes(overlay, png)
+    atomic_write_text(out, text)
     return dets

@@ -241,5 +241,9 @@ def export_scene(scene_dir_or_scene: "str | Path | Scene", formats: str | Iterab
                                     "or choose another --out")
     written: dict[str, list[Path]] = {}
     for fmt, files in produced.items():
+        if overwrite and (out / fmt).is_dir():  # the format's folder is replaced whole: no stale file survives
+            import shutil
+
+            shutil.rmtree(out / fmt)
         written[fmt] = [atomic_write_bytes(out / fmt / rel, data) for rel, data in sorted(files.items())]
     return written

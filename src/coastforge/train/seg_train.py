@@ -56,8 +56,8 @@ WORK_GSD_M = 0.3  # the network's working resolution (metres per pixel)
 FORMAT = "coastforge.learned_segmenter/1"
 IGNORE = 255
 # label codes of the training rasters: 0-7 our classes; 8-10 sets of them (coarse real labels)
-SET_PAVED, SET_VEGETATION, SET_BARE, REAL_WATER = 8, 9, 10, 11
-N_CODES = 12  # REAL_WATER: water of a real photo (weighted as a set, not by the renders' water share)
+SET_PAVED, SET_VEGETATION, SET_BARE, REAL_WATER, SET_LAND = 8, 9, 10, 11, 12
+N_CODES = 13  # REAL_WATER: water of a real photo (weighted as a set, not by the renders' water share)
 DUBAI_NOMINAL_GSD_M = 0.6  # ../shared/data/README.md: "about 0.5-1 m/px"; DESIGN.md §5 uses 0.6
 
 
@@ -68,7 +68,8 @@ def label_sets() -> np.ndarray:
     t = np.zeros((N_CODES, N_CLASSES), bool)
     t[np.arange(N_CLASSES), np.arange(N_CLASSES)] = True
     for code, names in ((SET_PAVED, ("asphalt", "sidewalk")), (SET_VEGETATION, ("grass", "trees")),
-                        (SET_BARE, ("sand", "dirt")), (REAL_WATER, ("water",))):
+                        (SET_BARE, ("sand", "dirt")), (REAL_WATER, ("water",)),
+                        (SET_LAND, tuple(n for n in CLASS_NAMES if n != "water"))):
         for n in names:
             t[code, CLASS_IDS[n]] = True
     return t
@@ -89,17 +90,23 @@ DATASETS = {
     "cars": {"name": "KIT AIS vehicle data (Munich crops), training crops: vehicle boxes as weak pavement labels "
                      "(parked and driving cars stand on pavement), the rest unlabelled",
              "licence": "CC BY 3.0", "attribution": "KIT IPF; via github.com/jekhor/aerial-cars-dataset (d2ed927f)"},
+    "streets": {"name": "KIT AIS vehicle data (Munich crops), training crops: every pixel land (two inland street "
+                        "scenes with no water: tree canopy, shadows and dark cars as negatives for water), "
+                        "vehicle boxes pavement",
+                "licence": "CC BY 3.0", "attribution": "KIT IPF; via github.com/jekhor/aerial-cars-dataset (d2ed927f)"},
 }
-REAL_SETS = ("dubai", "ships", "cars")
+REAL_SETS = ("dubai", "ships", "cars", "streets")
 # share of each batch from each real set when it is used (the rest: renders)
-REAL_SHARES = {"dubai": 0.3, "ships": 0.1, "cars": 0.1}
+REAL_SHARES = {"dubai": 0.3, "ships": 0.1, "cars": 0.1, "streets": 0.1}
 # scale jitter of each pool (its GSD is known to this factor at best): renders, Dubai (nominal GSD), weak sets
-SCALE_RANGE = {"synthetic": (0.75, 1.33), "dubai": (0.5, 1.6), "ships": (0.6, 1.5), "cars": (0.8, 1.25)}
+SCALE_RANGE = {"synthetic": (0.75, 1.33), "dubai": (0.5, 1.6), "ships": (0.6, 1.5), "cars": (0.8, 1.25),
+               "streets": (0.8, 1.25)}
 
 
 def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
     """Weak labels from the training split of a real box set at ``work_gsd_m``: ``ships`` boat boxes are
-    REAL_WATER, ``cars`` vehicle boxes SET_PAVED, every other pixel IGNORE."""
+    REAL_WATER, ``cars`` vehicle boxes SET_PAVED, every other pixel IGNORE; ``streets`` is ``cars`` with
+    every other pixel SET_LAND (the Munich crops are inland streets: no pixel of them is water)."""
     from .. import realdata
 
     if which == "ships":
@@ -108,12 +115,13 @@ def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tup
     else:
         items = [(it, realdata.MUNICH_GSD_M) for it in realdata.munich_items()]
         code = SET_PAVED
+    background = SET_LAND if which == "streets" else IGNORE
     out = []
     for it, gsd in items:
         if it.val:
             continue
         rgb, s = resample_to_gsd(realdata.read_rgb(it.path), gsd, work_gsd_m)
-        lab = np.full(rgb.shape[:2], IGNORE, np.uint8)
+        lab = np.full(rgb.shape[:2], background, np.uint8)
         for x0, y0, x1, y1 in it.boxes * s:
             lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = code
         out.append((rgb, lab))
@@ -287,7 +295,7 @@ def class_weights(levels) -> np.ndarray:
 
 
 # loss weight of each real label set (doubling vegetation's did not keep lawns from water: see the card)
-SET_WEIGHTS = {SET_PAVED: 1.0, SET_VEGETATION: 1.0, SET_BARE: 1.0, REAL_WATER: 1.0}
+SET_WEIGHTS = {SET_PAVED: 1.0, SET_VEGETATION: 1.0, SET_BARE: 1.0, REAL_WATER: 1.0, SET_LAND: 1.0}
 
 
 def code_weights(levels) -> np.ndarray:
