@@ -83,7 +83,7 @@ def render_levels(out_dir: str | Path, seeds: list[int], make_item: MakeItem, *,
 
 
 def data_main(argv: list[str] | None, description: str, default_seeds: str,
-              generate: Callable[..., Path], mix_option: bool = False) -> None:
+              generate: Callable[..., Path], mix_option: bool = False, looks_option: bool = False) -> None:
     """The shared command line: ``--out DIR --seeds A:B [--minutes M]`` (and ``--mix NAME`` if asked)."""
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--out", required=True, help="output folder (resumable: written levels are skipped)")
@@ -93,8 +93,14 @@ def data_main(argv: list[str] | None, description: str, default_seeds: str,
     if mix_option:
         ap.add_argument("--mix", choices=("benchmark", "training"), default="benchmark",
                         help="asset types as in the benchmark's levels, or with rare ones shown more often")
+    if looks_option:
+        ap.add_argument("--library", default=None, help="render with this asset library's assets (default: the kit)")
+        ap.add_argument("--looks", choices=("kit", "varied"), default="kit",
+                        help="'varied' repaints about half the boats (dark hulls among them)")
     a = ap.parse_args(argv)
     kw = {"mix": a.mix} if mix_option else {}
+    if looks_option:
+        kw.update(library=a.library, looks=a.looks)
     generate(a.out, parse_seeds(a.seeds), minutes=a.minutes, **kw)
 
 

@@ -8,6 +8,9 @@ the detector's working GSD, with their oriented boxes.
 benchmark's own seed (0) is refused so that validation never leaks into training. ``--mix training``
 draws the rare asset types more often (``synth_layout.TRAINING_MIX``: buses and box trucks, hatchbacks,
 dinghies, kayaks, rowboats, centre consoles); the default draws them as the benchmark's levels do.
+``--library LIB`` renders the levels with another asset library's boats and cars (e.g. a training split of
+the CC0 models in ../shared/data/models), ``--looks varied`` repaints about half the boats (dark hulls
+among them): looks the kit does not have.
 """
 
 from __future__ import annotations
@@ -34,20 +37,44 @@ def resample_to_gsd(rgb: np.ndarray, gsd_m: float, work_gsd_m: float = WORK_GSD_
     return cv2.resize(rgb, (nw, nh), interpolation=interp), nw / w
 
 
+# hull colours of real boats beyond the kit's white gel coat (sRGB): navy, black, dark green, varnished
+# wood, grey, red, royal blue, cream; a detector trained on white hulls misses the dark ones on real photos
+HULL_PAINTS = ((24, 34, 70), (20, 20, 24), (28, 58, 40), (110, 70, 38), (90, 92, 96), (150, 30, 30),
+               (40, 70, 150), (220, 210, 180))
+
+
+def vary_looks(level, rng: np.random.Generator, p_boat: float = 0.5):
+    """The level with the body colour of about ``p_boat`` of its boats drawn from ``HULL_PAINTS`` (half of
+    those dark), for training only: the benchmark's levels keep the kit's looks."""
+    import dataclasses
+
+    objs = []
+    for o in level.scene.objects:
+        if o.category == "boat" and "paint" not in o.attrs and rng.random() < p_boat:
+            o = dataclasses.replace(o, attrs={**o.attrs, "paint": list(HULL_PAINTS[int(rng.integers(len(HULL_PAINTS)))])})
+        objs.append(o)
+    return dataclasses.replace(level, scene=dataclasses.replace(level.scene, objects=tuple(objs)))
+
+
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
-                 work_gsd_m: float = WORK_GSD_M,
-                 mix: str = "benchmark") -> tuple[np.ndarray, list[list[float]]]:
+                 work_gsd_m: float = WORK_GSD_M, mix: str = "benchmark", library: str | Path | None = None,
+                 looks: str = "kit") -> tuple[np.ndarray, list[list[float]]]:
     """One synthetic level rendered at ``gsd_m`` and resampled to ``work_gsd_m``: (rgb, boxes).
 
-    ``mix="training"`` draws the rare asset types more often (``synth_layout.TRAINING_MIX``)."""
+    ``mix="training"`` draws the rare asset types more often (``synth_layout.TRAINING_MIX``); ``library``
+    fills the layout's roles with that library's assets (other looks than the kit's); ``looks="varied"``
+    repaints about half the boats (``vary_looks``)."""
     from .. import frames
+    from ..rng import stage_rng
     from ..synth import synthesize_level
     from ..synth_layout import BENCHMARK_MIX, TRAINING_MIX
     from ..synth_render import mesh_source, render_level
 
-    level = synthesize_level(preset, seed, size_m=size_m,
+    level = synthesize_level(preset, seed, size_m=size_m, library=library,
                              mix=TRAINING_MIX if mix == "training" else BENCHMARK_MIX)
-    rgb = render_level(level, mesh_source(None), gsd_m, seed)
+    if looks == "varied":
+        level = vary_looks(level, stage_rng(seed, "train", "detector_data", "looks"))
+    rgb = render_level(level, mesh_source(library), gsd_m, seed)
     sx, sy = level.scene.extent_m
     work, _ = resample_to_gsd(rgb, sx / rgb.shape[1], work_gsd_m)
     h, w = work.shape[:2]
@@ -68,27 +95,27 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
 
 def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
              gsd_range: tuple[float, float] = (0.08, 0.3), minutes: float | None = None,
-             mix: str = "benchmark") -> Path:
+             mix: str = "benchmark", library: str | None = None, looks: str = "kit") -> Path:
     """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written images).
 
     The index is rewritten after every level so that a run cut short still leaves usable data."""
     from ..fsio import write_png
 
     def make_item(preset: str, seed: int, gsd: float, size: float, out: Path) -> tuple[dict, str]:
-        rgb, boxes = level_sample(preset, seed, gsd, size, mix=mix)
+        rgb, boxes = level_sample(preset, seed, gsd, size, mix=mix, library=library, looks=looks)
         name = f"{preset}_{seed}.png"
         write_png(out / name, rgb)
         return ({"image": name, "preset": preset, "seed": seed, "render_gsd_m": round(gsd, 4),
                  "boxes": [[round(v, 3) for v in b] for b in boxes]}, f"boxes={len(boxes)}")
 
     # level sizes kept small (fast, many layouts)
-    head = {"work_gsd_m": WORK_GSD_M, "mix": mix}
+    head = {"work_gsd_m": WORK_GSD_M, "mix": mix, "library": str(library) if library else "kit", "looks": looks}
     return render_levels(out_dir, seeds, make_item, stage="detector_data", index_head=head, presets=presets,
                          gsd_range=gsd_range, size_range_m=(70.0, 150.0), minutes=minutes)
 
 
 def main(argv: list[str] | None = None) -> None:
-    data_main(argv, __doc__.splitlines()[0], "100:400", generate, mix_option=True)
+    data_main(argv, __doc__.splitlines()[0], "100:400", generate, mix_option=True, looks_option=True)
 
 
 if __name__ == "__main__":
