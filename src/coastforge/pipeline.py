@@ -394,8 +394,19 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
         provenance=provenance)
     _write_vegetation_outputs(bg, out, veg)
     bg.submit("scene_rasters", save_scene_rasters, scene, out, low=True)
+    write_instances(scene, out)
     bg.wait(skip=pending)  # re-raises the first failed job
     return scene
+
+
+def write_instances(scene: Scene, out: Path) -> Path:
+    """``instances.json`` beside scene.json: the scene's one label table (DESIGN.md §3), the same one every
+    export carries (its objects never change after this point: timings only touch the provenance)."""
+    from .export import INSTANCES_FILE
+    from .export.labels import instances_json
+    from .fsio import atomic_write_bytes
+
+    return atomic_write_bytes(out / INSTANCES_FILE, instances_json(scene))
 
 
 def make_report(req: GenerateRequest, out: Path, timings: dict, scene: Scene | None = None,
