@@ -19,7 +19,7 @@ from .options import overwrite_option, pass_config
 @pass_config
 def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
     """Export a scene to simulator formats, each under OUT/<format>/."""
-    from ..export import export_scene
+    from ..export import export_scene, export_summary
 
     library = None
     if library_dir is not None:
@@ -28,8 +28,5 @@ def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
         library = Library.load(library_dir)
     written = export_scene(scene_dir, formats or config.export.formats, out_dir=out_dir, overwrite=overwrite,
                            config=config.export, library=library)
-    import os
-
-    for fmt, paths in written.items():
-        folder = os.path.commonpath([str(p.parent) for p in paths]) if paths else "-"
-        click.echo(f"{fmt}: {len(paths)} files under {folder}")
+    for line in export_summary(written):
+        click.echo(line)
