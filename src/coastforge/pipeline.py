@@ -158,7 +158,7 @@ def place_decisions(decisions, dets: list[Detection], library, grid, config: Con
         k = counters.get(d.category, 0)
         counters[d.category] = k + 1
         objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
-                             water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
+                             water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.confidence,  # in [0, 1]
                              attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4),
                                     "match": dec.index},
                              shape_scale=dec.fit_scale, shape_offset_m=dec.fit_offset_m if dec.fit_scale else None))
@@ -242,7 +242,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     """The stages after reading the image (``side``: the side process, when there is one)."""
     from .detection import detect
     from .matching import match_detections
-    from .piers import build_piers
+    from .piers import build_piers, set_deck_heights
     from .segmentation import segment
     from .terrain import estimate_terrain
     from .types import HeightMap
@@ -307,6 +307,9 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             if walk is not None:
                 pr = build_piers(dets, class_map, walk, finger, config.piers)
                 pier_objects, pier_report = list(pr.objects), pr.report
+                # decks level with the quay they leave, not at the water surface
+                pier_objects = set_deck_heights(pier_objects, class_map.ids, height, config.piers,
+                                                config.terrain.quay_height_m)
         with timer.stage("vegetation"):  # while the matcher works: clear of the piers and the detected boxes
             veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library),
                           pier_objects + detection_footprints(dets, grid), config.vegetation, seed)

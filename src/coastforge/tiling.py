@@ -674,6 +674,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, _with_timings,
                            assets_by_category, fill_under_objects, make_report, object_counts, place_decisions,
                            scene_provenance, write_scene_files)
+    from .piers import set_deck_heights
     from .scene import save_scene
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
@@ -734,7 +735,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
             pier_report: dict = {"n_structures": 0}
             if walk is not None:
                 pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
-                objects.extend(pier_objects)
+                objects.extend(set_deck_heights(pier_objects, class_map.ids, height, config.piers,
+                                                config.terrain.quay_height_m))
         with timer.stage("vegetation"):
             veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library), objects, config.vegetation,
                           seed)
