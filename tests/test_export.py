@@ -316,6 +316,13 @@ def test_build_level_stops_when_the_landscape_heights_differ(out, capsys):
     assert rc == 1 and "STOPPED" in text and "differ from the heightmap" in text
     assert f"max error {want_cm:.3f} cm" in text and "Resolution:" in text
     assert rec.violations == [] and rec.named("EditorActorSubsystem.spawn_actor_from_object") == []
+    # a landscape imported by hand (--skip-landscape) is checked too
+    land = next(a for a in rec.world_actors if isinstance(a, unreal_stub.Landscape))
+    rc, text = _run_build_level(ue, mod, ["--skip-landscape"], capsys)
+    assert land.heights is not None and rc == 1 and "differ from the heightmap" in text
+    rec.height_drift = 0
+    rc, text = _run_build_level(ue, mod, ["--skip-landscape"], capsys)
+    assert rc == 0 and "max error 0.000 cm" in text and rec.violations == []
 
 
 def test_build_level_checks_the_holoocean_water_actors(out, capsys):

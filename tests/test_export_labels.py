@@ -210,6 +210,21 @@ def test_generated_sdf_parses_with_libsdformat(generated, sdfcheck):
     assert r.returncode == 0 and "OK" in r.stdout, r.stdout + r.stderr
 
 
+def test_generated_glb_passes_the_khronos_validator(generated):
+    import subprocess
+
+    from test_export import JS_DIR, _validator
+
+    node = _validator()
+    out, _ = generated
+    (glb,) = (out / "gltf").glob("*.glb")
+    r = subprocess.run([node, str(JS_DIR / "validate_gltf.mjs"), str(glb)], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    issues = json.loads(r.stdout)["issues"]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"]
+
+
 @pytest.fixture(scope="session")
 def sdfcheck():
     from test_export import build_sdfcheck  # the libsdformat checker test_export compiles

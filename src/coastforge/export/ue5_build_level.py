@@ -96,6 +96,10 @@ class Builder:
         self.check_water(eas)
         if self.skip_landscape:
             self.log("landscape: skipped (--skip-landscape)")
+            # a landscape imported by hand is checked all the same: manual imports go wrong most often
+            lands = [] if self.dry else [a for a in eas.get_all_level_actors() if isinstance(a, ue.LandscapeProxy)]
+            if self.dry or lands:
+                self.verify_heights(lands[0] if lands else None)
         else:
             self.landscape(eas)
         self.spawn_actors(eas)
