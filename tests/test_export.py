@@ -262,11 +262,19 @@ def test_build_level_against_recording_unreal(out, scene, capsys):
         assert (a.scale.x, a.scale.y, a.scale.z) == pytest.approx(o.scale)
         assert a.folder == folders[o.id]
         assert spec["run_tag"] in a._props["tags"]
+    # HoloOcean's Tagger reads the FIRST actor tag; floating boats also carry Float (the tide moves them)
+    labels = {"boat_1": ["Boat", "Float"], 'car "1"\nx': ["Car"], "pier_1": ["Pier"], "big_boat": ["Boat", "Float"]}
+    for oid, want in labels.items():
+        tags = spawned[oid]._props["tags"]
+        assert tags[:len(want)] == want and tags[len(want)] == spec["run_tag"]
     assert spawned["boat_1"].asset.path == "/Game/Boats/SM_Boat"  # a library Unreal path is used as is
-    assert spawned["pier_1"].asset.path == "/Game/Coastforge/Test_Harbor/Meshes/SM_kit_pier"  # GLB imported
+    # GLB imported into <level>/<Label>/Meshes: the Tagger's Content-folder fallback names the label too
+    assert spawned["pier_1"].asset.path == "/Game/Coastforge/Test_Harbor/Pier/Meshes/SM_kit_pier"
     assert spawned["veg_tree_1"].folder == "Tree" and spawned["veg_tree_1"].scale.z == pytest.approx(1.2)
+    assert spawned["veg_tree_1"]._props["tags"][0] == "Tree"
     assert len(rec.named("AssetTools.import_asset_tasks")) == 3  # car, pier, tree: once each
     assert rec.saved == 1 and "WARNING" not in text
+    assert "height check at" in text and "max error 0.000 cm" in text  # the landscape read back after import
 
     # re-run: the level is loaded, earlier actors replaced (no duplicates), imported meshes re-used
     n_actors = len(rec.world_actors)
@@ -276,6 +284,59 @@ def test_build_level_against_recording_unreal(out, scene, capsys):
     assert rec.violations == [] and rec.named("LevelEditorSubsystem.load_level")
     assert len(rec.named("EditorActorSubsystem.destroy_actor")) == len(scene.objects) + len(scene.vegetation)
     assert len(rec.world_actors) == n_actors and rec.named("AssetTools.import_asset_tasks") == []
+
+
+def test_build_level_under_interchange_reuses_imports(out, capsys):
+    """UE 5.3's Interchange glTF importer ignores destination_name and lists no imported paths: the script
+    still finds the meshes it imported (by the source's name, in the destination folder) and re-uses them."""
+    import unreal_stub
+
+    ue = out / "ue5"
+    mod, rec = unreal_stub.make_unreal(assets={"/Game/Boats/SM_Boat"}, interchange=True)
+    rc, text = _run_build_level(ue, mod, [], capsys)
+    assert rc == 0, text
+    assert rec.violations == [] and len(rec.named("AssetTools.import_asset_tasks")) == 3
+    spawned = {a.label: a for a in rec.world_actors if isinstance(a, unreal_stub.StaticMeshActor) and a.asset}
+    assert spawned["pier_1"].asset.path == "/Game/Coastforge/Test_Harbor/Pier/Meshes/SM_kit_pier"
+    rec.calls.clear()
+    rc, text = _run_build_level(ue, mod, [], capsys)
+    assert rc == 0, text
+    assert rec.named("AssetTools.import_asset_tasks") == [] and rec.violations == []
+
+
+def test_build_level_stops_when_the_landscape_heights_differ(out, capsys):
+    import unreal_stub
+
+    ue = out / "ue5"
+    mod, rec = unreal_stub.make_unreal(assets={"/Game/Boats/SM_Boat"})
+    rec.height_drift = 400  # Unreal would hold every height 400 raw steps (about 8 cm here) off the file
+    rc, text = _run_build_level(ue, mod, [], capsys)
+    spec = json.loads((ue / "level.json").read_text())
+    want_cm = 400 * spec["landscape"]["height_step_cm"]
+    assert rc == 1 and "STOPPED" in text and "differ from the heightmap" in text
+    assert f"max error {want_cm:.3f} cm" in text and "Resolution:" in text
+    assert rec.violations == [] and rec.named("EditorActorSubsystem.spawn_actor_from_object") == []
+    # a landscape imported by hand (--skip-landscape) is checked too
+    land = next(a for a in rec.world_actors if isinstance(a, unreal_stub.Landscape))
+    rc, text = _run_build_level(ue, mod, ["--skip-landscape"], capsys)
+    assert land.heights is not None and rc == 1 and "differ from the heightmap" in text
+    rec.height_drift = 0
+    rc, text = _run_build_level(ue, mod, ["--skip-landscape"], capsys)
+    assert rc == 0 and "max error 0.000 cm" in text and rec.violations == []
+
+
+def test_build_level_checks_the_holoocean_water_actors(out, capsys):
+    import unreal_stub
+
+    ue = out / "ue5"
+    mod, rec = unreal_stub.make_unreal(assets={"/Game/Boats/SM_Boat"})
+    plane = next(a for a in rec.world_actors if "WaterSurface" in a._props["tags"])
+    plane._props["root_component"]._props["mobility"] = unreal_stub.EnumValue("ComponentMobility.STATIC")
+    fog = next(a for a in rec.world_actors if a.label == "PostProcessFog")
+    rec.world_actors.remove(fog)
+    rc, text = _run_build_level(ue, mod, [], capsys)
+    assert rc == 0 and rec.violations == []
+    assert "is not Movable" in text and "one post-process volume tagged WaterPPV" in text
 
 
 def test_build_level_dry_run_stop_and_documented_names(out, capsys):
@@ -551,6 +612,10 @@ int main(int argc, char** argv) {
 
 @pytest.fixture(scope="session")
 def sdfcheck() -> Path:
+    return build_sdfcheck()
+
+
+def build_sdfcheck() -> Path:
     """The libsdformat checker, compiled once per machine (cached by source hash)."""
     gxx, pkg = shutil.which("g++"), shutil.which("pkg-config")
     if gxx is None or pkg is None:

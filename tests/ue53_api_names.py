@@ -41,6 +41,9 @@ API: dict[str, str] = {
     "EditorAssetLibrary.does_asset_exist":
         f"{CPP}/Plugins/EditorScriptingUtilities/UEditorAssetLibrary/DoesAssetExist?application_version=5.3",
     "EditorAssetLibrary.load_asset": f"{CPP}/Plugins/EditorScriptingUtilities/UEditorAssetLibrary/LoadAsset",
+    "EditorAssetLibrary.list_assets":
+        f"{CPP}/Plugins/EditorScriptingUtilities/UEditorAssetLibrary/ListAssets?application_version=5.3"
+        " (ListAssets(DirectoryPath, bRecursive=true, bIncludeFolder=false) -> object paths)",
     "AssetImportTask": f"{PY}/class/AssetImportTask?application_version=5.1",
     "AssetImportTask.editor_property:filename": f"{PY}/class/AssetImportTask?application_version=5.1",
     "AssetImportTask.editor_property:destination_path": f"{PY}/class/AssetImportTask?application_version=5.1",
@@ -59,6 +62,9 @@ API: dict[str, str] = {
         f"{CPP}/Runtime/Engine/Kismet/UKismetRenderingLibrary/ImportFileAsTexture2D?application_version=5.2",
     "RenderingLibrary.begin_draw_canvas_to_render_target": f"{PY}/class/RenderingLibrary?application_version=5.1",
     "RenderingLibrary.end_draw_canvas_to_render_target": f"{PY}/class/RenderingLibrary?application_version=5.1",
+    "RenderingLibrary.read_render_target_raw_pixel":
+        f"{CPP}/Runtime/Engine/Kismet/UKismetRenderingLibrary/ReadRenderTargetRawPixel?application_version=5.3"
+        " (X, Y, bNormalize = true -> FLinearColor)",
     "TextureRenderTargetFormat": f"{PY}/class/TextureRenderTargetFormat?application_version=5.1",
     "TextureRenderTargetFormat.RTF_RGBA8": f"{PY}/class/TextureRenderTargetFormat?application_version=5.1",
     "TextureFilter": f"{PY}/class/TextureFilter?application_version=5.1",
@@ -72,6 +78,9 @@ API: dict[str, str] = {
     "LandscapeProxy": f"{CPP}/Runtime/Landscape/ALandscapeProxy/LandscapeImportHeightmapFromRend-?application_version=5.4",
     "LandscapeProxy.landscape_import_heightmap_from_render_target":
         f"{CPP}/Runtime/Landscape/ALandscapeProxy/LandscapeImportHeightmapFromRend-?application_version=5.4",
+    "LandscapeProxy.landscape_export_heightmap_to_render_target":
+        f"{CPP}/Runtime/Landscape/ALandscapeProxy?application_version=5.3 (LandscapeExportHeightmapToRenderTarget("
+        "InRenderTarget, InExportHeightIntoRGChannel, InExportLandscapeProxies), BlueprintCallable)",
     "LandscapeProxy.landscape_import_weightmap_from_render_target":
         f"{CPP}/Runtime/Landscape/ALandscapeProxy/LandscapeImportWeightmapFromRend-?application_version=5.4",
     # actors
@@ -83,6 +92,11 @@ API: dict[str, str] = {
     "Actor.set_actor_label": f"{BP}/EditorScripting/ActorEditing/SetActorLabel",
     "Actor.get_actor_label": f"{BP}/EditorScripting/ActorEditing/GetActorLabel",
     "Actor.get_component_by_class": f"{BP}/Utilities/GetComponentByClass",
+    "Actor.editor_property:root_component": f"{PY}/class/Actor?application_version=5.3 (root_component)",
+    "SceneComponent": f"{PY}/class/SceneComponent?application_version=5.3",
+    "SceneComponent.editor_property:mobility": f"{PY}/class/SceneComponent?application_version=5.3 (mobility)",
+    "ComponentMobility": f"{PY}/class/ComponentMobility?application_version=5.3",
+    "ComponentMobility.MOVABLE": f"{PY}/class/ComponentMobility?application_version=5.3",
     "Actor.editor_property:tags": f"{PY}/class/PCGComponent?application_version=5.3 (Actor/Component tags: Array[Name])",
     "Vector": f"{PY}/class/Vector?application_version=5.1",
     "Vector.z": f"{PY}/class/Vector?application_version=5.1",

@@ -24,6 +24,8 @@ class Recorder:
         self.assets: set[str] = set()
         self.templates: set[str] = set()
         self.saved = 0
+        self.interchange = False  # import like Interchange: destination_name ignored, no imported_object_paths
+        self.height_drift = 0  # raw steps added to the heights a landscape export returns
 
     def check(self, cls_name: str, member: str) -> str:
         """The documented key for cls_name.member (walking base classes), or a recorded violation."""
@@ -134,6 +136,8 @@ class LinearColor(StubObject):
     def __init__(self, r=0.0, g=0.0, b=0.0, a=1.0):
         super().__init__()
         object.__setattr__(self, "rgba", (float(r), float(g), float(b), float(a)))
+        for k, v in zip("rgba", self.rgba):
+            object.__setattr__(self, k, v)
 
 
 class TextureRenderTargetFormat(StubObject):
@@ -146,6 +150,14 @@ class TextureFilter(StubObject):
 
 class BlendMode(StubObject):
     pass
+
+
+class ComponentMobility(StubObject):
+    pass
+
+
+class SceneComponent(StubObject):
+    _props_default = {"mobility": EnumValue("ComponentMobility.MOVABLE")}
 
 
 # ---------------------------------------------------------------- objects
@@ -244,6 +256,18 @@ class LandscapeProxy(Actor):
             return True
         return False
 
+    def _do_landscape_export_heightmap_to_render_target(self, in_render_target, in_export_height_into_rg_channel=False,
+                                                         in_export_landscape_proxies=True):
+        # into an 8-bit target only as R = high byte, G = low byte (a single-channel height needs >= 16 bits)
+        if (self.heights is None or not in_export_height_into_rg_channel
+                or in_render_target.fmt != EnumValue("TextureRenderTargetFormat.RTF_RGBA8")):
+            return False
+        h = self.heights.astype(np.int64) + REC.height_drift  # a test can make Unreal disagree with the file
+        d = in_render_target.data
+        d[..., 0] = (h >> 8) & 0xFF
+        d[..., 1] = h & 0xFF
+        return True
+
     def _do_landscape_import_weightmap_from_render_target(self, render_target, layer_name):
         self.weights[str(layer_name)] = render_target.data[..., 0].copy()
         return True
@@ -295,12 +319,15 @@ class AssetTools(StubObject):
         for t in import_tasks:
             p = t._props
             assert p.get("automated") is True, "an import without automated=True opens dialogs"
-            name = p.get("destination_name") or p["filename"].replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+            stem = p["filename"].replace("\\", "/").rsplit("/", 1)[-1].rsplit(".", 1)[0]
+            # Interchange (UE 5.3's glTF importer) ignores destination_name: the asset is named after the source
+            name = stem if REC.interchange else (p.get("destination_name") or stem)
             path = f"{p['destination_path']}/{name}"
             REC.assets.add(path)
             REC.assets.add(path + "_Material")
-            # like the glTF importer: a material comes first, then the mesh
-            p["imported_object_paths"] = [f"{path}_Material.{name}_Material", f"{path}.{name}"]
+            # like the glTF importer: a material comes first, then the mesh (Interchange here: nothing listed)
+            p["imported_object_paths"] = ([] if REC.interchange
+                                          else [f"{path}_Material.{name}_Material", f"{path}.{name}"])
 
 
 class AssetToolsHelpers(StubObject):
@@ -320,6 +347,12 @@ class EditorAssetLibrary(StubObject):
         if p not in REC.assets:
             return None
         return Material(p) if p.endswith("_Material") else StaticMesh(p)
+
+    @staticmethod
+    def _static_list_assets(directory_path, recursive=True, include_folder=False):
+        d = directory_path.rstrip("/") + "/"
+        hits = [a for a in sorted(REC.assets) if a.startswith(d) and (recursive or "/" not in a[len(d):])]
+        return [f"{a}.{a.rsplit('/', 1)[-1]}" for a in hits]  # object paths, as Unreal lists them
 
 
 class EditorAssetSubsystem(StubObject):
@@ -344,6 +377,12 @@ class RenderingLibrary(StubObject):
         if a.ndim == 3:
             a = a[:, :, [2, 1, 0, 3]] if a.shape[2] == 4 else a[:, :, ::-1]
         return Texture2D(a)
+
+    @staticmethod
+    def _static_read_render_target_raw_pixel(world_context_object, texture_render_target, x, y, normalize=True):
+        assert isinstance(world_context_object, World)
+        v = texture_render_target.data[int(y), int(x)].astype(float)
+        return LinearColor(*(v / 255.0 if normalize else v))
 
     @staticmethod
     def _static_begin_draw_canvas_to_render_target(world_context_object, texture_render_target):
@@ -396,26 +435,30 @@ class UnrealEditorSubsystem(StubObject):
 
 
 CLASSES = {c.__name__: c for c in (
-    Vector, Vector2D, Rotator, LinearColor, TextureRenderTargetFormat, TextureFilter, BlendMode, Texture, Texture2D,
+    Vector, Vector2D, Rotator, LinearColor, TextureRenderTargetFormat, TextureFilter, BlendMode, ComponentMobility,
+    SceneComponent, Texture, Texture2D,
     TextureRenderTarget2D, Canvas, Actor, StaticMeshActor, LandscapeProxy, Landscape, PCGComponent, PCGVolume,
     AssetImportTask, AssetTools, AssetToolsHelpers, EditorAssetLibrary, RenderingLibrary, LevelEditorSubsystem,
     EditorActorSubsystem, UnrealEditorSubsystem, EditorAssetSubsystem, StaticMesh)}
 
 
 def make_unreal(templates=("/Game/HoloOcean/Maps/CoastforgeTemplate",), assets=(), landscape=True,
-                water=True) -> tuple[types.ModuleType, Recorder]:
-    """A fresh stand-in ``unreal`` module and its recorder, with a template level holding a landscape."""
+                water=True, interchange=False) -> tuple[types.ModuleType, Recorder]:
+    """A fresh stand-in ``unreal`` module and its recorder, with a template level holding a landscape.
+    ``interchange``: imports behave like UE 5.3's Interchange glTF importer (see AssetTools)."""
     global REC
     REC = Recorder()
     REC.templates.update(templates)
     REC.assets.update(assets)
+    REC.interchange = interchange
     if landscape:
         REC.world_actors.append(Landscape(label="Landscape"))
-    if water:  # the HoloOcean template actors DESIGN.md §6 lists, identified by their tags
-        for label, tag in (("WaterPlane", "WaterSurface"), ("PostProcess", "WaterPPV"), ("CloudSunny", "Sunny"),
-                           ("CloudCloudy", "Cloudy")):
+    if water:  # the HoloOcean template actors DESIGN.md §6 and HoloOcean's create-env page list, by their tags
+        for label, tag in (("WaterPlane", "WaterSurface"), ("PostProcessColour", "WaterPPV"),
+                           ("PostProcessFog", "WaterPPV"), ("CloudSunny", "Sunny"), ("CloudCloudy", "Cloudy")):
             a = StaticMeshActor(Vector(0, 0, 0), Rotator(), label=label)
             a._props["tags"] = [tag]
+            a._props["root_component"] = SceneComponent()  # Movable (SceneComponent's default here)
             REC.world_actors.append(a)
     mod = types.ModuleType("unreal")
     subsystems: dict = {}

@@ -1,4 +1,8 @@
-"""The eight terrain classes (fixed ids), their colours and HoloOcean semantic labels (DESIGN.md §2)."""
+"""The eight terrain classes (fixed ids), their colours and HoloOcean semantic labels (DESIGN.md §2).
+
+The HoloOcean label is a name ``ATagger::GetLabelByFolderName`` accepts, with its ``holoocean::ObjectLabel``
+stencil value (see ``export/labels.py`` for the sources). Ground classes take HoloOcean's ground labels
+(GroundGrass, GroundRock, Ground): Grass, Tree and Rock are the props scattered on them."""
 
 from __future__ import annotations
 
@@ -20,11 +24,11 @@ TERRAIN_CLASSES: tuple[TerrainClass, ...] = (
     TerrainClass(0, "water", (0, 90, 160), 9, "WaterPlane"),
     TerrainClass(1, "asphalt", (70, 70, 70), 26, "Asphalt"),
     TerrainClass(2, "sidewalk", (200, 200, 200), 47, "Sidewalk"),
-    TerrainClass(3, "grass", (90, 170, 60), 25, "Grass"),
-    TerrainClass(4, "trees", (20, 100, 30), 52, "Tree"),
+    TerrainClass(3, "grass", (90, 170, 60), 5, "GroundGrass"),
+    TerrainClass(4, "trees", (20, 100, 30), 7, "Ground"),  # the forest floor under the trees
     TerrainClass(5, "dirt", (140, 100, 60), 7, "Ground"),
-    TerrainClass(6, "rocks", (130, 120, 110), 17, "Rock"),
-    TerrainClass(7, "sand", (230, 210, 150), 7, "Ground"),
+    TerrainClass(6, "rocks", (130, 120, 110), 6, "GroundRock"),
+    TerrainClass(7, "sand", (230, 210, 150), 7, "Ground"),  # HoloOcean has no sand label
 )
 
 N_CLASSES = len(TERRAIN_CLASSES)

@@ -219,7 +219,7 @@ class MatchConfig:
 @dataclass(frozen=True)
 class PierConfig:
     max_gap_m: float = 6.0  # a pier end this close to land or a walkway is extended to reach it
-    deck_height_m: float = 0.6
+    deck_height_m: float = 0.6  # a pier asset's deck top above its origin (the kit's decks; synth.PIER_DECK_M)
 
 
 @dataclass(frozen=True)

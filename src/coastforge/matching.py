@@ -55,9 +55,11 @@ class MatchDecision:
     candidates: tuple[Candidate, ...]
     fit_scale: float | None = None  # the chosen asset's scale that fitted the crop best (shape re-ranking)
     fit_offset_m: tuple[float, float] = (0.0, 0.0)  # fitted centre - box centre, along the final yaw and to its left
+    confidence: float = 1.0  # the score as a confidence in [0, 1] (``match_confidence``): the scene objects' score
 
     def to_dict(self) -> dict:
         out = {"index": self.index, "asset_id": self.asset_id, "score": round(self.score, 4),
+               "confidence": round(self.confidence, 4),
                "yaw_deg": round(self.yaw_deg, 3), "heading_source": self.heading_source,
                "flip_evidence": round(self.flip_evidence, 4),
                "candidates": [{"asset_id": c.asset_id, "appearance": round(c.appearance, 4),
@@ -368,8 +370,19 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
                 source = "library" if abs(evidence) >= heading_min_evidence else "unresolved"
                 evidence = abs(evidence)
         decisions.append(MatchDecision(i, chosen.asset_id, chosen.score, float(wrap_deg(yaw)), source, evidence,
-                                       tuple(cands[: min(5, len(cands))]), fit_scale, offset))
+                                       tuple(cands[: min(5, len(cands))]), fit_scale, offset,
+                                       match_confidence(chosen, config)))
     return decisions
+
+
+def match_confidence(c: Candidate, config: MatchConfig) -> float:
+    """A candidate's score as a confidence in [0, 1]. The score ranks candidates and is not bounded by 1: with
+    the shape fit it is a correlation (<= 1) plus ``shape_appearance_weight`` x the embedding's cosine minus a
+    size penalty (so up to 1 + that weight; scenes showed 1.15), without it a weighted mean of cosine and size
+    likelihood (<= 1). Dividing by the largest score the formula can give keeps the ranking and makes 1 the
+    perfect match; negative scores (anti-correlated fits) are no confidence at all."""
+    top = 1.0 + max(0.0, config.shape_appearance_weight) if c.shape is not None else 1.0
+    return float(min(1.0, max(0.0, c.score / top)))
 
 
 # --------------------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ from .classes import WATER
 from .config import PierConfig
 from .frames import wrap_half_deg
 from .scene import SceneObject
-from .types import ClassMap, Detection, Grid
+from .types import ClassMap, Detection, Grid, HeightMap
 
 # a pier end this close to solid land touches the shore (the evaluation allows 0.75 m between footprint and land)
 LAND_TOUCH_M = 0.4
@@ -331,3 +331,64 @@ def _chain(b: PierBox, asset, prefix: str, structure: int, water_level_m: float)
             attrs={"structure": f"pier{structure}", "role": b.role, "segment": k, "of": n},
         ))
     return out
+
+
+def set_deck_heights(objects, class_ids: np.ndarray, height: HeightMap, config: PierConfig,
+                     quay_height_m: float, water_level_m: float = 0.0) -> list[SceneObject]:
+    """Pier segments raised to their real height: a structure's deck is level with the ground at its land
+    end (a walkway leaves the quay flush), the convention of the truth scenes ``coastforge synth`` makes.
+
+    A pier object's z is its asset's origin, and the deck top stands ``config.deck_height_m`` above it (the
+    kit's decks: 0.6 m, ``synth.PIER_DECK_M``); so z = ground at the land end - deck_height_m, kept between the
+    water level (a floating pontoon) and the quay height (no deck above a quay's top + deck height). A
+    structure with no land near any end (it floats) gets the quay height as its deck. Other objects pass
+    unchanged."""
+    import cv2
+
+    piers = [o for o in objects if o.category == "pier"]
+    if not piers or height is None:
+        return list(objects)
+    g = height.grid
+    # ground pixels: land, minus the decks themselves (pier decks are often classified as paving)
+    land = (np.asarray(class_ids) != WATER).astype(np.uint8)
+    if land.shape != g.shape:
+        land = cv2.resize(land, (g.width_px, g.height_px), interpolation=cv2.INTER_NEAREST)
+    for o in piers:
+        col, row = g.to_pixel(*o.footprint_m().T)
+        cv2.fillPoly(land, [np.round(np.stack([col, row], 1)).astype(np.int32)], 0)
+    by_structure: dict[str, list[SceneObject]] = {}
+    for o in piers:
+        by_structure.setdefault(str(o.attrs.get("structure", o.id)), []).append(o)
+    z_of: dict[str, float] = {}
+    for sid, segs in by_structure.items():
+        best = (0, quay_height_m)  # (land pixels near the end, ground height there)
+        for o in segs:
+            u = np.array([np.cos(np.radians(o.yaw_deg)), np.sin(np.radians(o.yaw_deg))])
+            r_m = max(1.5, o.width_m)
+            for end in (np.array([o.x_m, o.y_m]) + s * u * o.length_m / 2 for s in (-1.0, 1.0)):
+                z = _ground_near(land, height, end, r_m)
+                if z is not None and z[0] > best[0]:
+                    best = z
+        deck_top = best[1]
+        z_of[sid] = float(np.clip(deck_top - config.deck_height_m, water_level_m, water_level_m + quay_height_m))
+    from dataclasses import replace
+
+    return [replace(o, z_m=z_of[str(o.attrs.get("structure", o.id))]) if o.category == "pier" else o
+            for o in objects]
+
+
+def _ground_near(land: np.ndarray, height: HeightMap, p: np.ndarray, radius_m: float) -> tuple[int, float] | None:
+    """(number of ground pixels, their median height) within ``radius_m`` of ``p``, or None without any."""
+    g = height.grid
+    col, row = g.to_pixel(p[0], p[1])
+    r = max(1, int(np.ceil(radius_m / g.gsd_m)))
+    c0, c1 = int(max(0, np.floor(col) - r)), int(min(g.width_px, np.floor(col) + r + 1))
+    r0, r1 = int(max(0, np.floor(row) - r)), int(min(g.height_px, np.floor(row) + r + 1))
+    if c1 <= c0 or r1 <= r0:
+        return None
+    yy, xx = np.mgrid[r0:r1, c0:c1]
+    disc = (xx + 0.5 - col) ** 2 + (yy + 0.5 - row) ** 2 <= r * r
+    sel = disc & (land[r0:r1, c0:c1] > 0)
+    if not sel.any():
+        return None
+    return int(sel.sum()), float(np.median(height.z_m[r0:r1, c0:c1][sel]))

@@ -185,7 +185,7 @@ def place_decisions(decisions, dets: list[Detection], library, grid, config: Con
         k = counters.get(d.category, 0)
         counters[d.category] = k + 1
         objects.append(place(d, assets[dec.asset_id], grid, f"{d.category}_{k:03d}", config.match, height=height,
-                             water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.score,
+                             water_level_m=0.0, yaw_deg=dec.yaw_deg, score=dec.confidence,  # in [0, 1]
                              attrs={"heading": dec.heading_source, "detector_score": round(d.score, 4),
                                     "match": dec.index},
                              shape_scale=dec.fit_scale, shape_offset_m=dec.fit_offset_m if dec.fit_scale else None))
@@ -319,7 +319,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     """The stages after reading the image (``side``: the side process, when there is one)."""
     from .detection import detect
     from .matching import match_detections
-    from .piers import build_piers
+    from .piers import build_piers, set_deck_heights
     from .segmentation import segment
     from .terrain import estimate_terrain
     from .types import HeightMap
@@ -390,6 +390,9 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             if walk is not None:
                 pr = build_piers(dets, class_map, walk, finger, config.piers)
                 pier_objects, pier_report = list(pr.objects), pr.report
+                # decks level with the quay they leave, not at the water surface
+                pier_objects = set_deck_heights(pier_objects, class_map.ids, height, config.piers,
+                                                config.terrain.quay_height_m)
         with timer.stage("vegetation"):  # while the matcher works: clear of the piers and the detected boxes
             veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library, kit),
                           pier_objects + detection_footprints(dets, grid), config.vegetation, seed)
@@ -477,8 +480,19 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
         provenance=provenance)
     _write_vegetation_outputs(bg, out, veg)
     bg.submit("scene_rasters", save_scene_rasters, scene, out, low=True)
+    write_instances(scene, out)
     bg.wait(skip=pending)  # re-raises the first failed job
     return scene
+
+
+def write_instances(scene: Scene, out: Path) -> Path:
+    """``instances.json`` beside scene.json: the scene's one label table (DESIGN.md §3), the same one every
+    export carries (its objects never change after this point: timings only touch the provenance)."""
+    from .export import INSTANCES_FILE
+    from .export.labels import instances_json
+    from .fsio import atomic_write_bytes
+
+    return atomic_write_bytes(out / INSTANCES_FILE, instances_json(scene))
 
 
 def make_report(req: GenerateRequest, out: Path, timings: dict, scene: Scene | None = None,

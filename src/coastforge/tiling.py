@@ -675,6 +675,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
                            fallback_kit, fallback_warning,
                            assets_by_category, fill_under_objects, make_report, object_counts, place_decisions,
                            scene_provenance, write_scene_files)
+    from .piers import set_deck_heights
     from .scene import save_scene
     from .segmentation.clean import clean_image
     from .segmentation.outputs import write_segmentation
@@ -740,7 +741,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
             pier_report: dict = {"n_structures": 0}
             if walk is not None:
                 pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
-                objects.extend(pier_objects)
+                objects.extend(set_deck_heights(pier_objects, class_map.ids, height, config.piers,
+                                                config.terrain.quay_height_m))
         with timer.stage("vegetation"):
             veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library, kit), objects, config.vegetation,
                           seed)

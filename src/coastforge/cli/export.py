@@ -19,7 +19,7 @@ from .options import overwrite_option, pass_config, staged
 @pass_config
 def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
     """Export a scene to simulator formats, each under OUT/<format>/."""
-    from ..export import export_scene
+    from ..export import export_scene, export_summary, parse_formats
 
     library = None
     if library_dir is not None:
@@ -27,8 +27,6 @@ def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
 
         library = Library.load(library_dir)
     from pathlib import Path
-
-    from ..export import parse_formats
 
     fmts = parse_formats(formats or config.export.formats)  # checked before anything is written
     src = Path(scene_dir)
@@ -45,5 +43,5 @@ def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
         scene_src = src if out_dir is not None else stage / src.name if src.is_file() else stage
         written = export_scene(scene_src, fmts, out_dir=stage, overwrite=overwrite, config=config.export,
                                library=library)
-    for fmt, paths in written.items():
-        click.echo(f"{fmt}: {len(paths)} files under {target / fmt}")
+    for line in export_summary({f: [target / p.relative_to(stage) for p in ps] for f, ps in written.items()}):
+        click.echo(line)

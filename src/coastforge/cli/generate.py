@@ -55,8 +55,10 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
     counts = ", ".join(f"{v} {k}" for k, v in result.n_objects.items())
     console.print(f"[bold]scene[/bold]  {result.scene_path}  ({counts})")
     console.print("timings  " + ", ".join(f"{k} {v:.2f}s" for k, v in result.timings_s.items()))
-    for fmt, paths in result.exports.items():
-        console.print(f"export   {fmt}: {len(paths)} files under {escape(str(result.out_dir / fmt))}")
+    from ..export import export_summary
+
+    for line in export_summary(result.exports):  # plain paths, not lists of PosixPath reprs
+        console.print(f"export   {escape(line)}")
     if result.report_path:
         console.print(f"[bold]report[/bold] {result.report_path}")
     for w in result.warnings:  # the self-check: the scene looks implausible (also in the report)

@@ -2,7 +2,8 @@
 
 ``export_scene`` is the one writer: it resolves the assets, runs the exporters, refuses to replace
 existing export files without ``overwrite`` (checked for every format before anything is written)
-and writes each file atomically under ``DIR/<format>/``.
+and writes each file atomically under ``DIR/<format>/``, and the scene's label table ``DIR/instances.json``
+(``labels.instances_table``) that every format's labels come from.
 
 Assets reach the exporters through an ``AssetResolver`` (meshes in the scene frame: metres, z up,
 forward +x, face colours). The default one reads the asset library when given, then the starter kit.
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol, runtime_che
 import numpy as np
 
 from ..errors import InputError, LibraryError, OutputExistsError
+from .labels import instances_json
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -33,6 +35,7 @@ FORMATS: dict[str, str] = {
     "ue5_tiles": "Unreal Engine 5 World-Partition landscape: heightmap and weight-map tiles named _x<i>_y<j>",
 }
 
+INSTANCES_FILE = "instances.json"  # the scene's label table (DESIGN.md §3), beside scene.json
 # texture files looked for in a scene folder, best first (the cleaned image has boats removed)
 TEXTURE_NAMES = ("cleaned.png", "cleaned.jpg", "image.png", "image.jpg", "input.png", "input.jpg")
 
@@ -233,8 +236,14 @@ def export_scene(scene_dir_or_scene: "str | Path | Scene", formats: str | Iterab
         assets = DefaultResolver(library=library, scene_dir=scene_dir, mesh_lookup=mesh_lookup)
 
     produced = {fmt: run_exporter(fmt, scene, assets, cfg) for fmt in fmts}
+    # the scene's label table beside the format folders (and beside scene.json when exporting in place):
+    # every format above took its labels from the same table
+    table = instances_json(scene)
+    table_path = out / INSTANCES_FILE
     if not overwrite:
         clashes = [out / fmt / rel for fmt, files in produced.items() for rel in files if (out / fmt / rel).exists()]
+        if table_path.exists() and table_path.read_bytes() != table:  # the same table is not a clash
+            clashes.append(table_path)
         if clashes:
             more = f" and {len(clashes) - 1} more" if len(clashes) > 1 else ""
             raise OutputExistsError(f"{clashes[0]}{more} exist(s); pass --overwrite to replace the export, "
@@ -246,4 +255,16 @@ def export_scene(scene_dir_or_scene: "str | Path | Scene", formats: str | Iterab
 
             shutil.rmtree(out / fmt)
         written[fmt] = [atomic_write_bytes(out / fmt / rel, data) for rel, data in sorted(files.items())]
+    atomic_write_bytes(table_path, table)
     return written
+
+
+def export_summary(written: dict[str, list[Path]]) -> list[str]:
+    """One line per format: how many files and the folder that holds them, as plain strings."""
+    import os
+
+    lines = []
+    for fmt, paths in written.items():
+        folder = os.path.commonpath([str(p.parent) for p in paths]) if paths else "-"
+        lines.append(f"{fmt}: {len(paths)} files under {folder}")
+    return lines

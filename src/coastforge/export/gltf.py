@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import __version__
 from . import scene_texture, unique_names
+from .labels import HOLOOCEAN_LABELS, instances_table, object_class, vegetation_label
 from .terrain_mesh import flat_mesh_arrays, png_bytes, terrain_image, terrain_mesh
 
 FLOAT, UINT, UBYTE = 5126, 5125, 5121
@@ -169,9 +170,11 @@ def _node_trs(x: float, y: float, z: float, yaw_deg: float, scale) -> dict:
 
 def build_glb(scene, assets, config) -> bytes:
     b = GlbBuilder()
+    table = instances_table(scene)
     root = b.node({"name": f"coastforge:{scene.name}", "extras": {
         "coastforge": {"scene": scene.name, "extent_m": list(scene.extent_m), "water_level_m": 0.0,
-                       "frame": "glTF y-up metres: (x, y, z)_gltf = (x_east, z_up, -y_north)"}}})
+                       "frame": "glTF y-up metres: (x, y, z)_gltf = (x_east, z_up, -y_north)",
+                       "classes": table["classes"]}}})
 
     # terrain
     tm = terrain_mesh(scene, config.gltf_max_vertices - 4)  # the water plane uses 4 of the budget
@@ -180,7 +183,8 @@ def build_glb(scene, assets, config) -> bytes:
     tmat = b.material({"name": "terrain", "pbrMetallicRoughness": {
         "baseColorTexture": {"index": tex}, "metallicFactor": 0.0, "roughnessFactor": 1.0}})
     tmesh = b.mesh("terrain", to_gltf(tm.vertices), to_gltf(tm.normals), tm.faces, tmat, uv=tm.uv)
-    b.node({"name": "terrain", "mesh": tmesh}, root)
+    b.node({"name": "terrain", "mesh": tmesh, "extras": {"label": "Landscape", "label_id": HOLOOCEAN_LABELS["Landscape"],
+                                                          "classes": "the class raster (scene terrain/classes.png)"}}, root)
 
     # water plane at z = 0 over the whole extent
     ew, eh = scene.extent_m
@@ -189,7 +193,8 @@ def build_glb(scene, assets, config) -> bytes:
         "baseColorFactor": list(WATER_RGBA), "metallicFactor": 0.0, "roughnessFactor": 0.1}})
     wmesh = b.mesh("water", to_gltf(wv), to_gltf(np.tile([0.0, 0.0, 1.0], (4, 1))),
                    np.array([[0, 1, 2], [0, 2, 3]]), wmat)
-    b.node({"name": "water", "mesh": wmesh}, root)
+    b.node({"name": "water", "mesh": wmesh, "extras": {"class": "water", "label": "WaterPlane",
+                                                        "label_id": HOLOOCEAN_LABELS["WaterPlane"]}}, root)
 
     # one mesh per asset, many nodes
     veg = scene.vegetation
@@ -201,19 +206,25 @@ def build_glb(scene, assets, config) -> bytes:
     for aid in asset_ids:
         mesh_of[aid] = add_asset_mesh(b, names[aid], assets.mesh(aid), amat)
 
+    # labels from the scene's label table (instances.json): the same ids and HoloOcean labels as every export
     objs = b.node({"name": "objects"}, root)
-    for o in scene.objects:
+    for o, r in zip(scene.objects, table["objects"]):
         node = {"name": o.id, "mesh": mesh_of[o.asset_id],
                 **_node_trs(o.x_m, o.y_m, o.z_m, o.yaw_deg, o.scale),
-                "extras": {"id": o.id, "asset_id": o.asset_id, "category": o.category, "source": o.source}}
+                "extras": {"id": o.id, "asset_id": o.asset_id, "category": o.category, "source": o.source,
+                           "class": r["class"], "label": r["holoocean"], "label_id": r["holoocean_id"],
+                           "instance_id": r["instance_id"], "floating": r["floating"]}}
         b.node(node, objs)
     if veg is not None and len(veg):
         vroot = b.node({"name": "vegetation"}, root)
         for i in range(len(veg)):
             s = float(veg.scale[i])
-            b.node({"name": f"veg_{i}", "mesh": mesh_of[str(veg.asset_id[i])],
+            cat, aid = str(veg.category[i]), str(veg.asset_id[i])
+            label, label_id = vegetation_label(cat, aid)
+            b.node({"name": f"veg_{i}", "mesh": mesh_of[aid],
                     **_node_trs(veg.x_m[i], veg.y_m[i], veg.z_m[i], veg.yaw_deg[i], (s, s, s)),
-                    "extras": {"asset_id": str(veg.asset_id[i]), "category": str(veg.category[i])}}, vroot)
+                    "extras": {"asset_id": aid, "category": cat, "class": object_class(cat, aid),
+                               "label": label, "label_id": label_id, "instance_id": 0}}, vroot)
     return b.to_bytes()
 
 

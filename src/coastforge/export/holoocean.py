@@ -5,8 +5,17 @@ entry (``config_world_entry.json``) into that package's ``config.json`` ``worlds
 ``holoocean.make`` fails. HoloOcean uses the scene frame (metres, x east, y north, z up).
 
 Agents: a HoveringAUV in water deep enough for it (between the surface and the seabed with margins,
-clear of every object) with imaging sonar, DVL, IMU, depth, camera and pose sensors; a SurfaceVessel
-on open water clear of objects with GPS, IMU, a semantic lidar and a camera.
+clear of every object) with imaging sonar, DVL, IMU, depth, camera, semantic segmentation camera and pose
+sensors; a SurfaceVessel on open water clear of objects with GPS, IMU, a semantic lidar and a camera.
+
+Sensor rates: HoloOcean's client samples a sensor every ``ticks_per_sec // Hz`` ticks; it refuses a rate above
+``ticks_per_sec`` (ValueError) and silently rounds one that does not divide it (a 20 Hz DVL at 30 ticks per
+second runs at 30 Hz). So every rate here is the divisor of ``ticks_per_sec`` nearest the wanted one, and the
+scenario is checked before it is written. Source: the client's ``HoloOceanEnvironment._load_scenario``
+(``client/src/holoocean/environments.py`` of the HoloOcean client, e.g. github.com/wellscrosby/MRGHoloOcean).
+The semantic sensors (``SemanticSegmentationCamera``, ``RaycastSemanticLidar``) are documented in
+byu-holoocean/holoocean-docs ``develop/_sources/sensors/sensors/`` (HoloOcean after 2.2.0); they report the
+labels the ue5 bundle gives every actor (its first tag, see ``labels.py``).
 """
 
 from __future__ import annotations
@@ -33,7 +42,24 @@ AGENT_SOCKETS = {
     "SurfaceVessel": ("Payload", "Platform", "Viewport"),
 }
 SENSOR_TYPES = ("ImagingSonar", "SidescanSonar", "ProfilingSonar", "DVLSensor", "IMUSensor", "DepthSensor",
-                "GPSSensor", "PoseSensor", "RGBCamera", "RaycastSemanticLidar")
+                "GPSSensor", "PoseSensor", "RGBCamera", "RaycastSemanticLidar", "SemanticSegmentationCamera")
+
+
+def sensor_hz(wanted: float, ticks: int) -> int:
+    """The divisor of ``ticks`` nearest ``wanted`` (the faster one on a tie): a rate HoloOcean runs exactly."""
+    divisors = [d for d in range(1, ticks + 1) if ticks % d == 0]
+    return min(divisors, key=lambda d: (abs(d - wanted), -d))
+
+
+def check_rates(scenario: dict) -> None:
+    """Every sensor's Hz divides ticks_per_sec (what HoloOcean's client needs to run it at that rate)."""
+    ticks = int(scenario["ticks_per_sec"])
+    for agent in scenario["agents"]:
+        for sen in agent["sensors"]:
+            hz = sen.get("Hz", ticks)
+            if not (isinstance(hz, int) and 0 < hz <= ticks and ticks % hz == 0):
+                raise InputError(f"sensor {sen.get('sensor_name')} of {agent['agent_name']} runs at {hz} Hz, which "
+                                 f"does not divide export.ticks_per_sec = {ticks}; HoloOcean would round it")
 
 
 def _sensor(kind: str, name: str, socket: str, hz: int, config: dict | None = None, rotation=None) -> dict:
@@ -45,7 +71,7 @@ def _sensor(kind: str, name: str, socket: str, hz: int, config: dict | None = No
 
 
 def auv_sensors(ticks: int, sonar_range_m: float) -> list[dict]:
-    hz = lambda f: min(int(f), ticks)  # noqa: E731  (every sensor Hz <= ticks_per_sec)
+    hz = lambda f: sensor_hz(f, ticks)  # noqa: E731  (a divisor of ticks_per_sec)
     return [
         _sensor("ImagingSonar", "ImagingSonar", "SonarSocket", hz(10), {
             "RangeBins": 512, "AzimuthBins": 512, "RangeMin": 0.5, "RangeMax": float(sonar_range_m),
@@ -59,13 +85,16 @@ def auv_sensors(ticks: int, sonar_range_m: float) -> list[dict]:
             "ReturnBias": True}),
         _sensor("DepthSensor", "DepthSensor", "DepthSocket", hz(ticks), {"Sigma": 0.255}),
         _sensor("RGBCamera", "LeftCamera", "CameraLeftSocket", hz(10), {"CaptureWidth": 512, "CaptureHeight": 512}),
+        # labels per pixel: the stencil values of the actors' first tags (instances.json holoocean_id)
+        _sensor("SemanticSegmentationCamera", "SemanticCamera", "CameraRightSocket", hz(10),
+                {"CaptureWidth": 512, "CaptureHeight": 512}),
         _sensor("PoseSensor", "PoseSensor", "IMUSocket", hz(ticks)),
     ]
 
 
 def vessel_sensors(ticks: int) -> list[dict]:
     """On the SurfaceVessel's ``Platform`` socket (its sockets are Payload, Platform, Viewport)."""
-    hz = lambda f: min(int(f), ticks)  # noqa: E731
+    hz = lambda f: sensor_hz(f, ticks)  # noqa: E731
     return [
         _sensor("GPSSensor", "GPSSensor", "Platform", hz(5), {"Sigma": 0.5, "Depth": 1, "DepthSigma": 0.25}),
         _sensor("IMUSensor", "IMUSensor", "Platform", hz(ticks), {
@@ -73,7 +102,7 @@ def vessel_sensors(ticks: int) -> list[dict]:
             "ReturnBias": True}),
         # keys as HoloOcean's URaycastSemanticLidar::ParseSensorParms reads them; Range in metres
         _sensor("RaycastSemanticLidar", "SemanticLidar", "Platform", hz(10), {
-            "Channels": 16, "Range": 60.0, "PointsPerSecond": 100000, "RotationFrequency": 10.0,
+            "Channels": 16, "Range": 60.0, "PointsPerSecond": 100000, "RotationFrequency": float(hz(10)),
             "UpperFovLimit": 15.0, "LowerFovLimit": -15.0, "HorizontalFov": 360.0}),
         _sensor("RGBCamera", "FrontCamera", "Platform", hz(10), {"CaptureWidth": 512, "CaptureHeight": 512}),
     ]
@@ -160,6 +189,7 @@ def build_scenario(scene, config) -> tuple[dict, dict]:
              "control_scheme": 0, "location": [round(v, 3) for v in vessel], "rotation": [0.0, 0.0, 0.0]},
         ],
     }
+    check_rates(scenario)
     world_entry = {"name": world, "pre_start_steps": 2, "env_min": scenario["env_min"], "env_max": scenario["env_max"]}
     return scenario, world_entry
 
@@ -179,7 +209,14 @@ def readme(scenario: dict, package: str) -> str:
         "",
         "Agents: `auv0` (HoveringAUV, in deep open water, clear of objects) and `vessel0` (SurfaceVessel on open "
         "water). Locations are metres in HoloOcean's frame (x east, y north, z up, water surface at z = 0). "
-        "Every sensor's Hz is at most ticks_per_sec; env_min/env_max enclose the whole level.",
+        f"Every sensor's Hz divides ticks_per_sec ({scenario['ticks_per_sec']}), so HoloOcean runs it at exactly "
+        "that rate; env_min/env_max enclose the whole level.",
+        "",
+        "Semantics: `SemanticCamera` (SemanticSegmentationCamera) and `SemanticLidar` (RaycastSemanticLidar) report "
+        "HoloOcean's labels, which the ue5 bundle puts first in every actor's tags; `../instances.json` lists each "
+        "object's label and stencil value (`holoocean_id`). Both sensors are in HoloOcean's develop branch (after "
+        "2.2.0): remove them from the JSON for an older release. Floating boats and buoys carry the tag `Float`, so "
+        "a `tide` in the scenario moves them with the water.",
         "",
     ])
 

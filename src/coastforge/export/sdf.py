@@ -18,9 +18,11 @@ import numpy as np
 
 from .. import __version__
 from . import safe_name, scene_texture, unique_names
+from .labels import HOLOOCEAN_LABELS, instances_table, vegetation_label
 from .terrain_mesh import face_colors, png_bytes, resample_height, terrain_image
 
 SDF_VERSION = "1.9"
+COASTFORGE_NS = "https://coastforge.invalid/sdf"  # the namespace of coastforge's custom elements
 
 
 def heightmap_size(max_px: int, cap: int) -> int:
@@ -60,12 +62,29 @@ def _mesh_geometry(uri: str, scale) -> str:
             f"</mesh></geometry>")
 
 
-def _model(name: str, pose: str, uri: str, scale, collision: bool = True) -> str:
+def label_plugin(label_id: int) -> str:
+    """Gazebo's Label system on a model: its visuals get ``label_id`` (0..255) in segmentation cameras.
+    (Gazebo Fortress spells it filename="ignition-gazebo-label-system" name="ignition::gazebo::systems::Label";
+    Garden and later read this name.)"""
+    if not 0 <= int(label_id) <= 255:
+        raise ValueError(f"Gazebo labels are 0..255, got {label_id}")
+    return (f'<plugin filename="gz-sim-label-system" name="gz::sim::systems::Label"><label>{int(label_id)}</label>'
+            "</plugin>")
+
+
+def instance_element(row: dict) -> str:
+    """coastforge's own SDFormat element (a namespaced custom element, which sdformat keeps and ignores):
+    the object's row of the label table, so the world carries the instance id a segmentation label cannot."""
+    return (f"<coastforge:instance id={quoteattr(str(row['id']))} instance_id=\"{int(row['instance_id'])}\" "
+            f"class={quoteattr(row['class'])} label={quoteattr(row['holoocean'])}/>")
+
+
+def _model(name: str, pose: str, uri: str, scale, label_id: int, collision: bool = True, extra: str = "") -> str:
     geom = _mesh_geometry(uri, scale)
     col = f"<collision name=\"collision\">{geom}</collision>" if collision else ""
     return (f"    <model name={quoteattr(name)}>\n      <static>true</static>\n      <pose>{pose}</pose>\n"
             f"      <link name=\"link\">\n        <visual name=\"visual\">{geom}</visual>\n        {col}\n"
-            f"      </link>\n    </model>\n")
+            f"      </link>\n      {label_plugin(label_id)}{extra}\n    </model>\n")
 
 
 def build_world(scene, assets, config) -> dict[str, bytes]:
@@ -98,7 +117,7 @@ def build_world(scene, assets, config) -> dict[str, bytes]:
         '<?xml version="1.0" ?>',
         f"<!-- coastforge {__version__}: scene {escape(scene.name).replace('--', '- -')}; "
         "x east, y north, z up, metres; water surface at z = 0 -->",
-        f'<sdf version="{SDF_VERSION}">',
+        f'<sdf version="{SDF_VERSION}" xmlns:coastforge="{COASTFORGE_NS}">',
         f"  <world name={quoteattr(safe_name(scene.name))}>",
         "    <gravity>0 0 -9.8</gravity>",
         "    <light type=\"directional\" name=\"sun\"><cast_shadows>true</cast_shadows><pose>0 0 100 0 0 0</pose>"
@@ -107,24 +126,28 @@ def build_world(scene, assets, config) -> dict[str, bytes]:
         "    <model name=\"terrain\">\n      <static>true</static>\n      <link name=\"link\">",
         f"        <collision name=\"collision\"><geometry>{hm.format(texture='')}</geometry></collision>",
         f"        <visual name=\"visual\"><geometry>{hm.format(texture=tex)}</geometry></visual>",
-        "      </link>\n    </model>",
+        f"      </link>\n      {label_plugin(HOLOOCEAN_LABELS['Landscape'])}\n    </model>",
         "    <model name=\"water_surface\">\n      <static>true</static>\n      <pose>0 0 0 0 0 0</pose>"
         "\n      <link name=\"link\">",
         f"        <visual name=\"visual\"><geometry><plane><normal>0 0 1</normal><size>{ew:.6f} {eh:.6f}</size>"
         "</plane></geometry><material><ambient>0 0.3 0.55 0.5</ambient><diffuse>0 0.35 0.63 0.5</diffuse>"
         "</material><transparency>0.5</transparency></visual>",
-        "      </link>\n    </model>",
+        f"      </link>\n      {label_plugin(HOLOOCEAN_LABELS['WaterPlane'])}\n    </model>",
     ]
     body = []
     model_names = unique_names([o.id for o in scene.objects])
-    for o in scene.objects:
+    # the label is the HoloOcean stencil value of the object's label (instances.json holoocean_id), so a
+    # Gazebo semantic segmentation and HoloOcean's agree; Gazebo separates instances by model itself
+    for o, r in zip(scene.objects, instances_table(scene)["objects"]):
         body.append(_model(model_names[o.id], _pose(o.x_m, o.y_m, o.z_m, yaw=math.radians(o.yaw_deg)),
-                           f"meshes/{mesh_names[o.asset_id]}.obj", o.scale))
+                           f"meshes/{mesh_names[o.asset_id]}.obj", o.scale, r["holoocean_id"],
+                           extra=instance_element(r)))
     if veg is not None:
         for i in range(len(veg)):
             s = float(veg.scale[i])
             body.append(_model(f"veg_{i}", _pose(veg.x_m[i], veg.y_m[i], veg.z_m[i], yaw=math.radians(veg.yaw_deg[i])),
-                               f"meshes/{mesh_names[str(veg.asset_id[i])]}.obj", (s, s, s), collision=False))
+                               f"meshes/{mesh_names[str(veg.asset_id[i])]}.obj", (s, s, s),
+                               vegetation_label(str(veg.category[i]), str(veg.asset_id[i]))[1], collision=False))
     text = "\n".join(out) + "\n" + "".join(body) + "  </world>\n</sdf>\n"
     files[f"{safe_name(scene.name)}.world"] = text.encode("utf-8")
     return files
@@ -137,6 +160,10 @@ def export_sdf(scene, assets, config) -> dict[str, bytes]:
         f"Written by coastforge {__version__} (SDFormat {SDF_VERSION}).\n\n"
         f"Run: `gz sim {safe_name(scene.name)}.world` from this folder (mesh and heightmap URIs are relative "
         "to the world file). The terrain is a 16-bit heightmap of 2^n+1 samples per side, row 0 = north; meshes "
-        "are OBJ in metres, z up. Models keep the scene object ids as names (made file-safe).\n"
+        "are OBJ in metres, z up. Models keep the scene object ids as names (made file-safe).\n\n"
+        "Semantic labels: every model has Gazebo's Label system (`gz-sim-label-system`, Garden or later; Fortress "
+        "calls it `ignition-gazebo-label-system`) with the HoloOcean stencil value of its label, so a segmentation "
+        "camera here and HoloOcean's semantic camera give the same numbers; `<coastforge:instance>` carries the "
+        "object's instance id and class from `../instances.json`.\n"
     ).encode("utf-8")
     return files

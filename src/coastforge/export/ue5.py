@@ -23,15 +23,12 @@ from ..classes import CLASS_NAMES, GRASS, ROCKS, SAND, TREES, WATER
 from ..errors import InputError
 from . import safe_name, unique_names
 from .gltf import mesh_glb_bytes
-from .terrain_mesh import class_weight_maps_u8, png_bytes, resample_height, sample_class
+from .labels import FLOAT_TAG, instances_table, vegetation_label
+from .terrain_mesh import class_weight_maps_u8, png_bytes, resample_height
 
 LANDSCAPE_SIZES = (127, 253, 505, 1009, 2017, 4033, 8129)
 WATER_VALUE = 32768
 LAYER_NAMES = tuple(n.capitalize() for n in CLASS_NAMES)  # Water, Asphalt, ... paint layer names
-# HoloOcean's Tagger reads World Outliner folder names (DESIGN.md §6)
-TAGGER_FOLDERS = {"boat": "Boat", "vehicle": "Car", "pier": "Pier", "buoy": "Buoy", "vegetation": "Tree",
-                  "rock": "Rock"}
-VEGETATION_FOLDERS = {"tree": "Tree", "bush": "Tree", "grass": "Grass", "rock": "Rock", "seaweed": "Seaweed"}
 SEAWEED_DEPTH_M = (0.5, 6.0)  # shallow water band where the seaweed mask is on
 
 
@@ -76,11 +73,34 @@ def decode_heights(h: np.ndarray, scale_z: float, location_z_cm: float = 0.0) ->
     return ((np.asarray(h, np.float64) - WATER_VALUE) / 128.0 * scale_z + location_z_cm) / 100.0
 
 
-def object_folder(scene, o, big_float_length_m: float) -> str:
-    """World Outliner folder: Tagger label folders, floating boats under float/big_float or float/small_float."""
-    if o.category == "boat" and int(sample_class(scene, o.x_m, o.y_m)) == WATER:
-        return "float/big_float" if o.length_m >= big_float_length_m else "float/small_float"
-    return TAGGER_FOLDERS.get(o.category, o.category.capitalize())
+def object_folder(row: dict, length_m: float, big_float_length_m: float) -> str:
+    """World Outliner folder of an object (its row of the label table): floating boats and buoys under
+    float/big_float or float/small_float (DESIGN.md §6), everything else in a folder named by its HoloOcean
+    label (Car, Pier, Bus, ...). Folders only keep the Outliner tidy: the Tagger reads the first actor tag."""
+    if row["floating"]:
+        return "float/big_float" if length_m >= big_float_length_m else "float/small_float"
+    return row["holoocean"]
+
+
+def actor_tags(label: str, floating: bool, run_tag: str, category: str, instance_id: int) -> list[str]:
+    """Actor tags in HoloOcean's order: the label FIRST (``ATagger::TagActor`` reads ``Tags[0]``), then
+    ``Float`` for props the tide moves, then coastforge's own (the run tag lets a re-run replace them)."""
+    return ([label] + ([FLOAT_TAG] if floating else [])
+            + [run_tag, f"coastforge:{category}", f"coastforge:instance={instance_id}"])
+
+
+def height_check(h16: np.ndarray, step_cm: float, per_side: int = 9) -> dict:
+    """Vertices build_level.py reads back after the landscape import (a per_side² grid plus the lowest and
+    highest vertex) with their raw values, and the largest error (cm) it accepts before it stops."""
+    n = h16.shape[0]
+    idx = np.unique(np.linspace(0, n - 1, per_side).round().astype(int))
+    pts = [(int(c), int(r)) for r in idx for c in idx]
+    for f in (np.argmin, np.argmax):
+        r, c = np.unravel_index(int(f(h16)), h16.shape)
+        pts.append((int(c), int(r)))
+    pts = list(dict.fromkeys(pts))
+    return {"points": [[c, r, int(h16[r, c])] for c, r in pts],  # [column, row, raw 16-bit value]
+            "tolerance_cm": max(1.0, 2.0 * step_cm)}
 
 
 def _rotation(yaw_deg: float) -> dict:
@@ -132,40 +152,56 @@ def build_bundle(scene, assets, config) -> tuple[dict, dict[str, bytes]]:
         raise InputError(f"export.content_path = {config.content_path!r} must be a project path under /Game")
 
     # assets: an Unreal path when the library has one, else a GLB in the bundle imported by the script
+    rows = instances_table(scene)["objects"]  # one row per object, in scene order
     veg = scene.vegetation
     n_veg = len(veg) if veg is not None else 0
     veg_spawned = n_veg if n_veg <= config.max_vegetation_actors else 0
-    ids = [o.asset_id for o in scene.objects] + ([str(a) for a in veg.asset_id] if veg_spawned else [])
-    names = unique_names(dict.fromkeys(ids))
+    asset_label: dict[str, str] = {}  # the label of the first object using each asset
+    for o, r in zip(scene.objects, rows):
+        asset_label.setdefault(o.asset_id, r["holoocean"])
+    for i in range(veg_spawned):
+        asset_label.setdefault(str(veg.asset_id[i]), vegetation_label(str(veg.category[i]), str(veg.asset_id[i]))[0])
+    names = unique_names(asset_label)
     asset_entries = []
     for aid, nm in names.items():
         ue_path = assets.ue_path(aid)
+        # imported meshes go to <level>/<Label>/Meshes: the Tagger's fallback for an actor without tags is the
+        # static mesh's grandparent Content folder (GetLabelByPath), so that folder carries the label too
         entry = {"asset_id": aid, "ue_path": ue_path, "glb": None, "import_name": f"SM_{nm}",
-                 "import_path": f"{content}/{level_name}/Meshes"}
+                 "import_path": f"{content}/{level_name}/{asset_label[aid]}/Meshes"}
         if not ue_path:
-            rel = f"meshes/{nm}.glb"
-            files[rel] = mesh_glb_bytes(assets.mesh(aid), nm)
+            # the file, its mesh and node all carry the import name: Interchange ignores destination_name and
+            # names the asset after the source, so every importer arrives at the same asset path
+            rel = f"meshes/SM_{nm}.glb"
+            files[rel] = mesh_glb_bytes(assets.mesh(aid), f"SM_{nm}")
             entry["glb"] = rel
         asset_entries.append(entry)
 
+    run_tag = f"coastforge:{level_name}"
     actors = []
-    for o in scene.objects:
+    for o, r in zip(scene.objects, rows):
         actors.append({"id": o.id, "label": o.id, "asset_id": o.asset_id, "category": o.category,
                        "location": _location_cm(o.x_m, o.y_m, o.z_m), "rotation": _rotation(o.yaw_deg),
-                       "scale": [float(s) for s in o.scale],
-                       "folder": object_folder(scene, o, config.big_float_length_m)})
+                       "scale": [float(s) for s in o.scale], "semantic_label": r["holoocean"],
+                       "instance_id": r["instance_id"], "floating": r["floating"],
+                       "folder": object_folder(r, o.length_m, config.big_float_length_m),
+                       "tags": actor_tags(r["holoocean"], r["floating"], run_tag, o.category, r["instance_id"])})
     for i in range(veg_spawned):
         cat = str(veg.category[i])
         s = float(veg.scale[i])
+        label = vegetation_label(cat, str(veg.asset_id[i]))[0]  # Tree, Bush, Grass, Rock or Seaweed
         actors.append({"id": f"veg_{i}", "label": f"veg_{cat}_{i}", "asset_id": str(veg.asset_id[i]),
                        "category": cat, "location": _location_cm(veg.x_m[i], veg.y_m[i], veg.z_m[i]),
-                       "rotation": _rotation(float(veg.yaw_deg[i])), "scale": [s, s, s],
-                       "folder": VEGETATION_FOLDERS.get(cat, "Tree")})
+                       "rotation": _rotation(float(veg.yaw_deg[i])), "scale": [s, s, s], "semantic_label": label,
+                       "instance_id": 0, "floating": False, "folder": label,
+                       "tags": actor_tags(label, False, run_tag, cat, 0)})
 
     zmin, zmax = float(z.min()), float(z.max())
     spec = {
         "format": "coastforge.ue5/1", "generator": f"coastforge {__version__}", "unreal_version": "5.3",
-        "scene": scene.name, "content_path": content, "run_tag": f"coastforge:{level_name}",
+        "scene": scene.name, "content_path": content, "run_tag": run_tag,
+        "labels": {"instances": "../instances.json", "first_tag": "HoloOcean Tagger label (ATagger::TagActor)",
+                   "float_tag": FLOAT_TAG},
         "level": {"name": level_name, "asset_path": f"{content}/Maps/{level_name}", "template": config.template_level},
         "landscape": {
             "size": n, "quads_per_section": q, "sections_per_component": spc, "components": comps,
@@ -175,6 +211,7 @@ def build_bundle(scene, assets, config) -> tuple[dict, dict[str, bytes]]:
             "z_range_m": [zmin, zmax], "source_px": [w_px, h_px],
             "heightmap_png": "heightmap/terrain_height.png", "heightmap_r16": "heightmap/terrain_height.r16",
             "heightmap_rg8": "heightmap/terrain_height_rg8.png",
+            "height_check": height_check(h16, scale_z / 128.0),
             "rows_along": "+Y_ue (row 0 = north edge)", "columns_along": "+X_ue (east)",
         },
         "weightmaps": weightmaps,
@@ -234,8 +271,9 @@ def readme(spec: dict) -> str:
         "(settings above) whose material has the paint layers "
         + ", ".join(w["layer"] for w in spec["weightmaps"])
         + " (each with a layer info), a Movable water plane at Z = 0 tagged `WaterSurface` (custom-depth stencil 9), "
-        "a post-process volume tagged `WaterPPV`, standard lighting, `BP_Weather_Manager` with two clouds tagged "
-        "`Sunny` and `Cloudy`, and a `FlashlightManager`. Do not enable the UE Water plugin (incompatible).",
+        "two post-process volumes over the water tagged `WaterPPV` (water colour, and water fog with `MM_Fog_Water`), "
+        "standard lighting, `BP_Weather_Manager` with two volumetric clouds tagged `Sunny` and `Cloudy`, and a "
+        "`FlashlightManager`. Do not enable the UE Water plugin (incompatible).",
         "2. Preview: `python build_level.py --dry-run` prints every action.",
         "3. In the editor (Output Log, Python): `py \"<this folder>/build_level.py\"`. It creates "
         f"`{spec['level']['asset_path']}` from the template, pushes heights and paint layers through render "
@@ -247,8 +285,16 @@ def readme(spec: dict) -> str:
         "meshes are re-used.",
         "",
         "## Assumptions",
-        "- Outliner folders follow HoloOcean's Tagger: Boat, Car, Pier, Buoy, Tree, Rock, Grass, Seaweed; boats on "
-        "water go to `float/big_float` (length ≥ big_float_length_m) or `float/small_float`.",
+        "- Semantic labels: every actor's FIRST tag is its HoloOcean label (Boat, Car, Bus, SemiTruck, Pier, Buoy, "
+        "Tree, Bush, Grass, Rock, Seaweed), which HoloOcean's `ATagger::TagActor` reads before anything else; the "
+        "same labels and instance ids are in `../instances.json`, the scene's label table. Imported meshes sit in "
+        "`<level>/<Label>/Meshes`, the Content folder the Tagger falls back to for an actor without tags.",
+        "- Floating boats and buoys carry the tag `Float` (HoloOcean's tide moves them) and sit in the Outliner "
+        "folders `float/big_float` (length ≥ big_float_length_m) or `float/small_float`; HoloOcean also wants "
+        "\"customized collision\" checked on their static meshes (Static Mesh editor, Collision) for the tide. "
+        "Other objects sit in a folder named by their label; vegetation in Tree, Bush, Grass, Rock and Seaweed.",
+        "- After the landscape import the script exports the heights back through a render target, compares "
+        "them with the heightmap at sample vertices, prints the maximum error and stops on a mismatch.",
         "- The render-target import uses an RGBA8 target: Unreal rebuilds each height as R·256 + G; the PNG is "
         "loaded as a transient texture with sRGB off and nearest filtering so bytes are copied unchanged.",
         "- Assets with an Unreal path are spawned as they are; their pivot is the centre of the footprint at the "

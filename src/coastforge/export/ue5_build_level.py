@@ -96,6 +96,10 @@ class Builder:
         self.check_water(eas)
         if self.skip_landscape:
             self.log("landscape: skipped (--skip-landscape)")
+            # a landscape imported by hand is checked all the same: manual imports go wrong most often
+            lands = [] if self.dry else [a for a in eas.get_all_level_actors() if isinstance(a, ue.LandscapeProxy)]
+            if self.dry or lands:
+                self.verify_heights(lands[0] if lands else None)
         else:
             self.landscape(eas)
         self.spawn_actors(eas)
@@ -145,14 +149,23 @@ class Builder:
             z = p.get_actor_location().z
             if abs(z) > 0.5:
                 self.log("WARNING: the WaterSurface plane is at Z = %.1f cm; coastforge's heights assume 0" % z)
-        tags = set()
+            # HoloOcean's tides move the plane: its docs ask for a Movable plane (create-env, "Water Plane")
+            root = p.get_editor_property("root_component")
+            if root is not None and root.get_editor_property("mobility") != self.ue.ComponentMobility.MOVABLE:
+                self.log("WARNING: the WaterSurface plane %s is not Movable; HoloOcean's tides need it Movable"
+                         % p.get_actor_label())
+        tags = {}
         for a in eas.get_all_level_actors():
-            tags.update(self._tags(a))
-        for tag, what in (("WaterPPV", "the underwater post-process volume"),
+            for t in set(self._tags(a)):
+                tags[t] = tags.get(t, 0) + 1
+        for tag, what in (("WaterPPV", "the underwater post-process volumes"),
                           ("Sunny", "the sunny cloud of BP_Weather_Manager"),
                           ("Cloudy", "the cloudy cloud of BP_Weather_Manager")):
             if tag not in tags:
                 self.log("WARNING: no actor tagged %s (%s); HoloOcean levels expect it in the template" % (tag, what))
+        if tags.get("WaterPPV") == 1:
+            self.log("WARNING: one post-process volume tagged WaterPPV; HoloOcean's levels have two (water colour, "
+                     "and water fog with MM_Fog_Water), both tagged WaterPPV")
 
     def _render_target(self, ue, size):
         return ue.RenderingLibrary.create_render_target2d(
@@ -196,6 +209,7 @@ class Builder:
                       "G = low byte)" % (n, n, ls["heightmap_rg8"]), push_heights)
         if not self.dry and not ok:
             raise BuildStopped("Unreal refused the render-target height import.\n" + manual_landscape_settings(self.spec))
+        self.verify_heights(land)
         for w in self.spec["weightmaps"]:
             def push_weights(w=w):
                 rt = self._render_target(ue, n)
@@ -207,6 +221,59 @@ class Builder:
                 raise BuildStopped("Unreal refused the weight map of layer %r (does the landscape material have a "
                                    "paint layer of that name with a layer info?).\n%s"
                                    % (w["layer"], manual_landscape_settings(self.spec)))
+
+    def verify_heights(self, land):
+        """Read the landscape's heights back (exported into an RGBA8 render target, R = high byte, G = low byte,
+        the mirror of the import) at the sample vertices of level.json, print the largest error and stop when it
+        exceeds the tolerance: a landscape that silently differs from the heightmap is worse than none."""
+        ls = self.spec["landscape"]
+        chk = ls.get("height_check")
+        if not chk:
+            return
+        pts = chk["points"]
+        if self.dry:
+            self.act("landscape: read the heights back at %d vertices and compare them with the heightmap "
+                     "(stop beyond %.2f cm)" % (len(pts), chk["tolerance_cm"]))
+            return
+        ue = self.ue
+        n = ls["size"]
+        rt = self._render_target(ue, n)
+        if not land.landscape_export_heightmap_to_render_target(rt, True, True):
+            raise BuildStopped("Unreal could not export the landscape heights to a render target to check them; "
+                               "check the landscape by hand against %s" % ls["heightmap_png"])
+        step = ls["height_step_cm"]
+        worst = (-1.0, None, None, None)
+        for c, r, want in pts:
+            px = ue.RenderingLibrary.read_render_target_raw_pixel(self.world, rt, c, r)  # normalised to 0..1
+            got = int(round(px.r * 255.0)) * 256 + int(round(px.g * 255.0))
+            err = abs(got - want) * step
+            if err > worst[0]:
+                worst = (err, (c, r), got, want)
+        err, (c, r), got, want = worst
+        self.log("landscape: height check at %d vertices: max error %.3f cm (tolerance %.3f cm)"
+                 % (len(pts), err, chk["tolerance_cm"]))
+        if err > chk["tolerance_cm"]:
+            raise BuildStopped("the landscape's heights differ from the heightmap: max error %.2f cm at vertex "
+                               "(column %d, row %d): Unreal holds %d, the heightmap %d. Import it by hand:\n%s"
+                               % (err, c, r, got, want, manual_landscape_settings(self.spec)))
+
+    def find_imported(self, dest, name):
+        """The static mesh an earlier import left in ``dest``, or None. Interchange (UE 5.3's default for glTF)
+        ignores ``AssetImportTask.destination_name`` and names assets after the source, so besides the
+        expected path the folder's assets are matched by name (the bundle's GLB, its mesh and node all carry
+        the import name)."""
+        ue = self.ue
+        lib = ue.EditorAssetLibrary
+        if lib.does_asset_exist(dest + "/" + name):
+            obj = lib.load_asset(dest + "/" + name)
+            if isinstance(obj, ue.StaticMesh):
+                return obj
+        for path in lib.list_assets(dest, False, False) or []:
+            if str(path).rsplit("/", 1)[-1].split(".", 1)[0] == name:
+                obj = lib.load_asset(str(path))
+                if isinstance(obj, ue.StaticMesh):
+                    return obj
+        return None
 
     def asset(self, entry):
         """The Unreal asset of one library asset: its ue_path, or its GLB imported (once) into the project."""
@@ -222,8 +289,9 @@ class Builder:
             target = dest + "/" + entry["import_name"]
 
             def do_import():
-                if ue.EditorAssetLibrary.does_asset_exist(target):
-                    return ue.EditorAssetLibrary.load_asset(target)
+                found = self.find_imported(dest, entry["import_name"])
+                if found is not None:
+                    return found
                 task = ue.AssetImportTask()
                 task.set_editor_property("filename", self.path(entry["glb"]))
                 task.set_editor_property("destination_path", dest)
@@ -237,6 +305,9 @@ class Builder:
                     obj = ue.EditorAssetLibrary.load_asset(p)
                     if isinstance(obj, ue.StaticMesh):
                         return obj
+                found = self.find_imported(dest, entry["import_name"])  # an importer that lists nothing
+                if found is not None:
+                    return found
                 raise BuildStopped("importing %s produced no static mesh; import it by hand into %s"
                                    % (self.path(entry["glb"]), dest))
 
@@ -260,11 +331,13 @@ class Builder:
                 actor.set_actor_scale3d(ue.Vector(*a["scale"]))
                 actor.set_folder_path(a["folder"])
                 actor.set_actor_label(a["label"])
-                actor.set_editor_property("tags", [self.spec["run_tag"], "coastforge:" + a["category"]])
+                # the HoloOcean label first (ATagger::TagActor reads Tags[0]), then Float, then the run tag
+                actor.set_editor_property("tags", list(a.get("tags") or [self.spec["run_tag"],
+                                                                         "coastforge:" + a["category"]]))
                 return actor
 
-            self.act("spawn %r (%s) at (%.1f, %.1f, %.1f) cm, yaw %.2f, scale %s, folder %s"
-                     % (a["label"], a["asset_id"], x, y, z, r["yaw"], a["scale"], a["folder"]), spawn)
+            self.act("spawn %r (%s) at (%.1f, %.1f, %.1f) cm, yaw %.2f, scale %s, folder %s, tags %s"
+                     % (a["label"], a["asset_id"], x, y, z, r["yaw"], a["scale"], a["folder"], a.get("tags")), spawn)
         if self.spec.get("vegetation_left_to_pcg"):
             self.log("vegetation: %d instances left to the PCG masks (more than max_vegetation_actors)"
                      % self.spec["vegetation_left_to_pcg"])
