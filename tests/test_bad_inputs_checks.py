@@ -99,3 +99,171 @@ def test_generate_refuses_bad_config_before_writing(tmp_path, args, phrase):
     assert r.exit_code == 2, r.output
     assert phrase in r.output and "Traceback" not in r.output
     assert _no_output(out)
+
+
+# ------------------------------------------------------------------------------------------- 2. images
+
+def _geotiff(path, crs, transform, h=64, w=64, dtype="uint8", nodata=None, fill=None):
+    import rasterio
+
+    data = (np.full((3, h, w), fill, dtype) if fill is not None
+            else np.random.default_rng(1).integers(0, 200, (3, h, w)).astype(dtype))
+    with rasterio.open(path, "w", driver="GTiff", width=w, height=h, count=3, dtype=dtype, crs=crs,
+                       transform=transform, nodata=nodata, compress="deflate") as dst:
+        dst.write(data)
+    return path
+
+
+def _bad_image(tmp_path, case):
+    """(path, read_image kwargs) of one bad image."""
+    from PIL import Image
+    from rasterio.transform import from_origin
+
+    rgb = np.random.default_rng(0).integers(0, 255, (200, 300, 3), dtype=np.uint8)
+    if case in ("truncated_png", "truncated_jpeg", "corrupt_png", "corrupt_jpeg"):
+        ext = "png" if "png" in case else "jpg"
+        p = tmp_path / f"a.{ext}"
+        Image.fromarray(rgb).save(p)
+        b = bytearray(p.read_bytes())
+        if case.startswith("truncated"):
+            b = b[:len(b) // 2]
+        else:  # a damaged run of 200 bytes mid-file (GDAL reads such a JPEG with grey blocks, without an error)
+            m = len(b) // 2
+            b[m:m + 200] = b"\xff" * 200
+        p.write_bytes(bytes(b))
+        return p, {"gsd_m": 0.2}
+    if case == "truncated_geotiff":
+        p = _geotiff(tmp_path / "a.tif", "EPSG:32633", from_origin(5e5, 4e6, 0.5, 0.5), h=200, w=300)
+        p.write_bytes(p.read_bytes()[:-2000])
+        return p, {}
+    if case == "palette_png":
+        p = tmp_path / "p.png"
+        Image.fromarray(rgb).convert("P").save(p)
+        return p, {"gsd_m": 0.2}
+    if case == "animated_gif":
+        p = tmp_path / "a.gif"
+        frames = [Image.fromarray(rgb).convert("P"), Image.fromarray(255 - rgb).convert("P")]
+        frames[0].save(p, save_all=True, append_images=frames[1:], duration=100)
+        return p, {"gsd_m": 0.2}
+    if case == "transparent_rgba":
+        p = tmp_path / "t.png"
+        write_png(p, np.dstack([rgb, np.zeros(rgb.shape[:2], np.uint8)]))
+        return p, {"gsd_m": 0.2}
+    if case == "nodata_geotiff":
+        return _geotiff(tmp_path / "nd.tif", "EPSG:32633", from_origin(5e5, 4e6, 0.5, 0.5), nodata=0, fill=0), {}
+    if case == "one_pixel":
+        return _image(tmp_path, "one.png", 1, 1), {"gsd_m": 0.2}
+    if case == "3x100000":
+        return _image(tmp_path, "strip.png", 3, 100_000), {"gsd_m": 0.2}
+    if case == "strip_100_to_1":
+        return _image(tmp_path, "strip.png", 20, 2000), {"gsd_m": 0.2}
+    if case.startswith("gsd_"):
+        return _image(tmp_path), {"gsd_m": float(case[4:])}
+    if case == "georef_in_degrees_under_utm":  # a 1e-5 "m" pixel: degrees written under a metric CRS
+        return _geotiff(tmp_path / "u.tif", "EPSG:32633", from_origin(10.0, 44.0, 1e-5, 1e-5)), {}
+    if case == "geographic_with_metre_coordinates":
+        return _geotiff(tmp_path / "g.tif", "EPSG:4326", from_origin(5e5, 4e6, 0.25, 0.25)), {}
+    if case == "memory_limit":
+        return _image(tmp_path), {"gsd_m": 0.2, "config": dataclasses.replace(Config().io, max_memory_gb=0.1)}
+    raise AssertionError(case)
+
+
+@pytest.mark.parametrize("case,phrase", [
+    ("truncated_png", "a.png is truncated or corrupt: the file ends inside its IDAT chunk; re-export or re-download"),
+    ("truncated_jpeg", "a.jpg is truncated or corrupt: libjpeg: Premature end of JPEG file; re-export or re-download"),
+    ("corrupt_png", "a.png is truncated or corrupt: its IDAT chunk fails the CRC check"),
+    ("truncated_geotiff", "a.tif is truncated or corrupt: "),
+    ("corrupt_jpeg", "a.jpg is truncated or corrupt: libjpeg: Corrupt JPEG data"),
+    ("palette_png", "p.png is a palette (indexed-colour) image; coastforge needs an RGB image"),
+    ("animated_gif", "a.gif is an animated GIF (2 frames); coastforge needs an RGB image"),
+    ("transparent_rgba", "t.png is fully transparent (alpha 0 everywhere): it holds no image"),
+    ("nodata_geotiff", "nd.tif is nodata everywhere (nodata = 0.0): it holds no image"),
+    ("one_pixel", "one.png is 1x1 px; coastforge needs at least 16 px on each side"),
+    ("3x100000", "strip.png is 100000x3 px; coastforge needs at least 16 px on each side"),
+    ("strip_100_to_1", "strip.png is 2000x20 px, a 100:1 strip; coastforge takes images up to 64:1"),
+    ("gsd_1e-9", "--gsd gives 1e-09 m/px for"),
+    ("gsd_1000", "--gsd gives 1000 m/px for"),
+    ("gsd_1e6", "--gsd gives 1e+06 m/px for"),
+    ("georef_in_degrees_under_utm", "the GeoTIFF georeference gives 1e-05 m/px"),
+    ("geographic_with_metre_coordinates", "claims a geographic CRS (EPSG:4326) but its bounds"),
+    ("memory_limit", "GiB of working memory, over io.max_memory_gb = 0.1"),
+])
+def test_images_checked_up_front(tmp_path, case, phrase):
+    from coastforge.errors import InputError
+    from coastforge.io import read_image
+
+    p, kw = _bad_image(tmp_path, case)
+    with pytest.raises(InputError) as e:
+        read_image(p, **kw)
+    msg = str(e.value)
+    assert phrase in msg, msg
+    assert "See previous exception" not in msg
+    if case.startswith("gsd_"):
+        assert "must be positive" not in msg and "outside the 0.005-50 m/px" in msg
+
+
+@pytest.mark.parametrize("size,gsd", [((16, 16), 0.2), ((40, 60), 0.01), ((40, 60), 8.0), ((30, 1900), 0.2)])
+def test_plausible_images_still_read(tmp_path, size, gsd):
+    from coastforge.io import read_image
+
+    img = read_image(_image(tmp_path, "ok.png", *size), gsd_m=gsd, stages=load_config())
+    assert img.rgb.shape == (*size, 3)
+
+
+def test_geographic_geotiff_with_a_wrong_scale_refused_by_the_memory_estimate(tmp_path):
+    """0.0004° pixels (~40 m) over 1000 px: the run's vegetation scatter alone would take hundreds of GiB."""
+    from rasterio.transform import from_origin
+
+    from coastforge.errors import InputError
+    from coastforge.io import estimate_memory_bytes, read_image
+
+    p = _geotiff(tmp_path / "geo.tif", "EPSG:4326", from_origin(10.0, 44.0, 0.0004, 0.0004), h=1000, w=1000)
+    with pytest.warns(UserWarning, match="reprojected"), pytest.raises(InputError) as e:
+        read_image(p, stages=load_config())
+    assert "GiB of working memory" in str(e.value) and "vegetation.enabled=false" in str(e.value)
+    assert sum(estimate_memory_bytes(1000, 1000, 40.0, load_config()).values()) > 100 * 2**30
+    with pytest.warns(UserWarning, match="reprojected"):
+        assert read_image(p).grid.gsd_m > 30  # reading alone (a benchmark) is fine
+
+
+def test_memory_estimate_grows_with_pixels_and_gsd():
+    from coastforge.io import estimate_memory_bytes
+
+    cfg = load_config()
+
+    def est(w, g):
+        return sum(estimate_memory_bytes(w, w, g, cfg).values())
+
+    assert est(2000, 0.2) < est(4000, 0.2) and est(2000, 0.2) < est(2000, 2.0)
+    assert est(4096, 0.2) < 8 * 2**30  # the largest untiled generate at a usual GSD passes the default limit
+
+
+@pytest.mark.parametrize("case,phrase", [
+    ("truncated_png", "is truncated or corrupt"),
+    ("palette_png", "is a palette (indexed-colour) image"),
+    ("one_pixel", "is 1x1 px"),
+    ("gsd_1e6", "--gsd gives 1e+06 m/px"),
+    ("gsd_1e-9", "--gsd gives 1e-09 m/px"),
+    ("transparent_rgba", "fully transparent"),
+])
+def test_generate_refuses_bad_images_before_writing(tmp_path, case, phrase):
+    p, kw = _bad_image(tmp_path, case)
+    out = tmp_path / "out"
+    args = ["generate", str(p), "--out", str(out), "--no-report"]
+    if "gsd_m" in kw:
+        args += ["--gsd", repr(kw["gsd_m"])]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 2, r.output
+    assert phrase in r.output and "Traceback" not in r.output
+    assert _no_output(out)
+
+
+def test_generate_refuses_a_run_over_the_memory_limit_before_writing(tmp_path):
+    from rasterio.transform import from_origin
+
+    p = _geotiff(tmp_path / "geo.tif", "EPSG:4326", from_origin(10.0, 44.0, 0.0004, 0.0004), h=1000, w=1000)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(cli, ["generate", str(p), "--out", str(out)])
+    assert r.exit_code == 2, r.output
+    assert "GiB of working memory, over io.max_memory_gb = 8" in r.output and "Traceback" not in r.output
+    assert _no_output(out)

@@ -217,18 +217,20 @@ def scene_provenance(req: GenerateRequest, config: Config, library, gsd_m: float
 
 
 def run_generate(req: GenerateRequest, config: Config, progress: Progress | None = None) -> GenerateResult:
+    from .config import validate_config
     from .io import read_image
 
     from . import tiling
 
+    validate_config(config)  # a Config built in code gets the checks load_config makes
     if tiling.needs_tiling(req.image):  # large orthophotos run by windows in bounded memory
         return tiling.generate_tiled(req, config, progress)
-    out = prepare_output_dir(req.out, req.overwrite)
     timer = _Timer(progress)
     seed = config.seed
     with timer.stage("read"):
-        image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io)
+        image: GeoImage = read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config)
         grid = image.grid
+    out = prepare_output_dir(req.out, req.overwrite)  # the image checked and read: the first write
     side = _SideProcess.start(grid.width_px * grid.height_px) if req.side_process else None
     try:
         return _run_chain(req, config, image, out, timer, side)
