@@ -267,3 +267,183 @@ def test_generate_refuses_a_run_over_the_memory_limit_before_writing(tmp_path):
     assert r.exit_code == 2, r.output
     assert "GiB of working memory, over io.max_memory_gb = 8" in r.output and "Traceback" not in r.output
     assert _no_output(out)
+
+
+# ------------------------------------------------------------------------------- 3. DEMs and heights
+
+DEM_CRS, X0, Y0, N, GSD = "EPSG:32610", 550_000.0, 4_180_000.0, 64, 0.5
+
+
+def _georef_scene(folder):
+    from coastforge.scene import Scene, save_scene
+
+    ids = np.zeros((N, N), np.uint8)
+    ids[:, : N // 2] = 3  # grass west, water east
+    save_scene(Scene(name="t", seed=0, gsd_m=GSD, extent_m=(N * GSD, N * GSD), classes=ids, crs=DEM_CRS,
+                     transform=(GSD, 0.0, X0, 0.0, -GSD, Y0)), folder)
+    return folder
+
+
+def _dem(path, values, nodata=None):
+    from coastforge.fsio import write_geotiff
+
+    write_geotiff(path, np.asarray(values, np.float32), (1.0, 0, X0, 0, -1.0, Y0), crs=DEM_CRS, nodata=nodata)
+    return path
+
+
+def _fuse(dem):
+    from coastforge.terrain.dem import fuse_dems
+    from coastforge.types import Grid
+
+    grid = Grid(N, N, GSD, DEM_CRS, (GSD, 0.0, X0, 0.0, -GSD, Y0))
+    return fuse_dems(np.zeros((N, N), np.float32), grid, [dem], Config().terrain)
+
+
+@pytest.mark.parametrize("case,phrase", [
+    ("all_1e30", "every value under the scene is beyond ±12000 m (e.g. 1e+30), which no real height is"),
+    ("all_minus_3e38", "every value under the scene is beyond ±12000 m"),
+    ("nan_only", "holds only nodata (or NaN) under the scene"),
+    ("declared_nodata_only", "holds only nodata (or NaN) under the scene"),
+    ("feet_beyond_12km", "every value under the scene is beyond ±12000 m (e.g. 50000)"),
+    ("truncated", "is truncated or corrupt"),
+])
+def test_absurd_dems_refused(tmp_path, case, phrase):
+    from coastforge.errors import InputError
+
+    p = tmp_path / "dem.tif"
+    spec = str(p)
+    if case == "all_1e30":
+        _dem(p, np.full((40, 40), 1e30))
+    elif case == "all_minus_3e38":
+        _dem(p, np.full((40, 40), -3.4e38))
+    elif case == "nan_only":
+        _dem(p, np.full((40, 40), np.nan), nodata=float("nan"))
+    elif case == "declared_nodata_only":
+        _dem(p, np.full((40, 40), -9999.0), nodata=-9999.0)
+    elif case == "feet_beyond_12km":
+        _dem(p, np.full((40, 40), 50_000.0))  # 15 km even in feet: refused at any scale
+        spec = f"{p}:scale=0.3048"
+    elif case == "truncated":  # the DEM just covers the scene, cut in half
+        _dem(p, np.random.default_rng(0).random((32, 32)) * 5)
+        p.write_bytes(p.read_bytes()[: len(p.read_bytes()) // 2])
+    with pytest.raises(InputError) as e:
+        _fuse(spec)
+    assert phrase in str(e.value) and str(p) in str(e.value)
+    assert "See previous exception" not in str(e.value)
+
+
+def test_dem_cells_beyond_12km_become_nodata_with_a_warning(tmp_path):
+    from coastforge.errors import CoastforgeWarning
+
+    z = np.full((40, 40), -3.0)
+    z[:10] = 1e30  # an undeclared nodata value in the northern rows
+    with pytest.warns(CoastforgeWarning, match=r"of \d+ cells .* beyond ±12000 m \(e.g. 1e\+30\); they are "
+                                               r"treated as nodata"):
+        fused, info = _fuse(_dem(tmp_path / "dem.tif", z))
+    assert np.isfinite(fused).all() and np.abs(fused).max() < 10  # no 1e30 smeared into real cells
+    assert 0 < info.coverage < 1
+    # a DEM in feet: 20 000 ft is 6 km, a real height once scaled
+    fused, _ = _fuse(f"{_dem(tmp_path / 'feet.tif', np.full((40, 40), -20_000.0))}:scale=0.3048")
+    assert fused.min() == pytest.approx(-6096.0, abs=1)
+
+
+def test_terrain_command_refuses_an_absurd_dem_before_writing(tmp_path):
+    scene = _georef_scene(tmp_path / "scene")
+    before = {p: p.read_bytes() for p in scene.rglob("*") if p.is_file()}
+    dem = _dem(tmp_path / "dem.tif", np.full((40, 40), 1e30))
+    r = CliRunner().invoke(cli, ["terrain", str(scene), "--dem", str(dem), "--overwrite"])
+    assert r.exit_code == 2, r.output
+    assert "beyond ±12000 m" in r.output and "Traceback" not in r.output
+    assert {p: p.read_bytes() for p in scene.rglob("*") if p.is_file()} == before
+
+
+# ---------------------------------------------------------------------------------- 4. scene contract
+
+def _scene_with_objects(folder, x_m=1.0, y_m=2.0, veg_x=0.0):
+    from coastforge.scene import Scene, SceneObject, Vegetation, save_scene
+
+    boat = SceneObject("boat_000", "boat", "runabout", x_m, y_m, 0.0, 10.0, (1.0, 1.0, 1.0), 6.0, 2.2)
+    veg = Vegetation(np.array(["tree_a"], dtype=object), np.array(["vegetation"], dtype=object),
+                     np.array([veg_x]), np.array([0.0]), np.array([0.0]), np.array([0.0]), np.array([1.0]))
+    ids = np.zeros((N, N), np.uint8)
+    save_scene(Scene(name="t", seed=0, gsd_m=GSD, extent_m=(N * GSD, N * GSD), height=np.zeros((N, N), np.float32),
+                     classes=ids, objects=(boat,), vegetation=veg), folder)
+    return folder
+
+
+def _bad_scene(tmp_path, case):
+    import json
+
+    from coastforge.fsio import write_png
+
+    folder = _scene_with_objects(tmp_path / "scene")
+    doc = json.loads((folder / "scene.json").read_text())
+    if case == "truncated_height":
+        h = folder / "terrain" / "height.tif"
+        h.write_bytes(h.read_bytes()[: len(h.read_bytes()) // 2])
+    elif case == "truncated_classes":
+        c = folder / "terrain" / "classes.png"
+        c.write_bytes(c.read_bytes()[: len(c.read_bytes()) // 2])
+    elif case == "classes_of_another_size":  # a 100x100 class map over the 64x64 scene (height gone)
+        (folder / "terrain" / "height.tif").unlink()
+        write_png(folder / "terrain" / "classes.png", np.zeros((100, 100), np.uint8))
+    elif case == "height_of_another_size":
+        from coastforge.fsio import write_geotiff
+
+        write_geotiff(folder / "terrain" / "height.tif", np.zeros((32, 32), np.float32), (1, 0, 0, 0, -1, 0))
+    elif case == "object_at_1e7":
+        doc["objects"][0]["x_m"] = 1e7
+    elif case == "object_at_nan":
+        (folder / "scene.json").write_text(json.dumps(doc).replace('"y_m": 2.0', '"y_m": NaN'))
+        return folder
+    elif case == "vegetation_at_1e7":
+        return _scene_with_objects(tmp_path / "scene2", veg_x=-1e7)
+    (folder / "scene.json").write_text(json.dumps(doc))
+    return folder
+
+
+SCENE_CASES = [
+    ("truncated_height", "height.tif is truncated or corrupt"),
+    ("truncated_classes", "classes.png is truncated or corrupt"),
+    ("classes_of_another_size", "classes.png is 100x100 px but the scene's grid is 64x64 px (extent_m 32 x 32 m at "
+                                "gsd_m 0.5)"),
+    ("height_of_another_size", "height.tif is 32x32 px but the scene's grid is 64x64 px"),
+    ("object_at_1e7", "object 'boat_000' is at x_m = 10000000.0, y_m = 2.0, more than 100 m outside the scene"),
+    ("object_at_nan", "objects[0] (id 'boat_000'): y_m = nan is not a finite number"),
+    ("vegetation_at_1e7", "vegetation instance 0 (tree_a) is at x_m = -10000000.0"),
+]
+
+
+@pytest.mark.parametrize("case,phrase", SCENE_CASES)
+def test_scene_contract_checked_on_load(tmp_path, case, phrase):
+    from coastforge.errors import SceneFormatError
+    from coastforge.scene import load_scene
+
+    folder = _bad_scene(tmp_path, case)
+    with pytest.raises(SceneFormatError) as e:
+        load_scene(folder)
+    assert phrase in str(e.value), str(e.value)
+    assert "See previous exception" not in str(e.value)
+
+
+def test_objects_near_the_border_still_load(tmp_path):
+    from coastforge.scene import load_scene
+
+    s = load_scene(_scene_with_objects(tmp_path / "s", x_m=16.0 + 99.0, veg_x=-110.0))  # within 100 m outside
+    assert s.objects[0].x_m == 115.0
+
+
+@pytest.mark.parametrize("case,phrase", [
+    ("truncated_height", "height.tif is truncated or corrupt"),
+    ("classes_of_another_size", "classes.png is 100x100 px but the scene's grid is 64x64 px"),
+    ("object_at_1e7", "object 'boat_000' is at x_m = 10000000.0"),
+    ("object_at_nan", "y_m = nan is not a finite number"),
+])
+def test_export_refuses_a_broken_scene_before_writing(tmp_path, case, phrase):
+    folder = _bad_scene(tmp_path, case)
+    out = tmp_path / "exports"
+    r = CliRunner().invoke(cli, ["export", str(folder), "--format", "gltf", "--out", str(out)])
+    assert r.exit_code == 2, r.output
+    assert phrase in r.output.replace("\n", " ") and "Traceback" not in r.output
+    assert _no_output(out)
+
