@@ -447,3 +447,93 @@ def test_export_refuses_a_broken_scene_before_writing(tmp_path, case, phrase):
     assert phrase in r.output.replace("\n", " ") and "Traceback" not in r.output
     assert _no_output(out)
 
+
+# ---------------------------------------------------------------------------------------- 5. assets
+
+def _box_glb(path, extents):
+    import trimesh
+
+    trimesh.creation.box(extents=extents).export(path)
+    return path
+
+
+def _manifest(folder, entries):
+    import json
+
+    p = folder / "manifest.json"
+    p.write_text(json.dumps({"assets": entries}))
+    return p
+
+
+@pytest.mark.parametrize("category,extents,phrase", [
+    ("boat", (1e6, 2.5e5, 1.5e5), "the closest guess, mm, gives a length of 1000 m (1.5-400 m expected)"),
+    ("vehicle", (0.02, 0.008, 0.006), "the closest guess, m, gives a length of 0.02 m (2-25 m expected)"),
+    ("tree", (4e5, 4e5, 9e5), "gives a height of 900 m"),
+])
+def test_absurd_mesh_sizes_refused(tmp_path, category, extents, phrase):
+    from coastforge.assets.meshes import load_mesh, normalise_mesh
+    from coastforge.errors import LibraryError
+
+    p = _box_glb(tmp_path / "big.glb", extents)
+    with pytest.raises(LibraryError) as e:
+        normalise_mesh(load_mesh(p), category, asset_id="x", up_axis="+z", forward_axis="+x", source=p)
+    msg = str(e.value)
+    assert phrase in msg and str(p) in msg and "its raw extent is" in msg and "state its unit" in msg
+    # with its unit stated the same model is taken at its word
+    normalise_mesh(load_mesh(p), category, asset_id="x", up_axis="+z", forward_axis="+x", unit=1e-5)
+
+
+def test_library_build_reports_an_absurd_mesh_with_its_file(tmp_path):
+    src = tmp_path / "src"
+    src.mkdir()
+    _box_glb(src / "huge.glb", (1e6, 2.5e5, 1.5e5))
+    man = _manifest(src, [{"id": "huge", "category": "boat", "mesh": "huge.glb", "up_axis": "+z"}])
+    r = CliRunner().invoke(cli, ["library", "build", str(man), "--out", str(tmp_path / "lib"), "--strict",
+                                 "--set", "library.lightings=1", "--set", "library.view_size_px=32"])
+    assert r.exit_code == 2, r.output
+    assert "asset 'huge'" in r.output and "huge.glb" in r.output and "raw extent" in r.output
+    assert "Traceback" not in r.output
+    assert not (tmp_path / "lib" / "library.json").exists()
+
+
+@pytest.mark.parametrize("how", ["dotdot", "symlink", "symlinked_folder"])
+def test_mesh_paths_outside_the_manifest_folder_refused(tmp_path, how):
+    from coastforge.assets.library import read_manifest
+
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    _box_glb(outside / "boat.glb", (8, 2.5, 1.5))
+    src = tmp_path / "src"
+    src.mkdir()
+    if how == "dotdot":
+        mesh = "../elsewhere/boat.glb"
+    elif how == "symlink":
+        (src / "boat.glb").symlink_to(outside / "boat.glb")
+        mesh = "boat.glb"
+    else:
+        (src / "models").symlink_to(outside, target_is_directory=True)
+        mesh = "models/boat.glb"
+    man = _manifest(src, [{"id": "b", "category": "boat", "mesh": mesh, "length_m": 8.0}])
+    specs, skipped = read_manifest(man)
+    assert not specs and len(skipped) == 1
+    err = skipped[0].error
+    assert "outside the manifest folder" in err or "escapes the manifest folder" in err
+    assert "copy the model inside it" in err
+    if how != "dotdot":
+        assert f"is a link to {(outside / 'boat.glb').resolve()}" in err
+    out = tmp_path / "lib"
+    r = CliRunner().invoke(cli, ["library", "build", str(man), "--out", str(out)])
+    assert r.exit_code == 2, r.output
+    assert "no usable assets" in r.output and "copy the model inside it" in r.output.replace("\n", " ")
+    assert _no_output(out)
+
+
+def test_a_symlink_inside_the_folder_still_works(tmp_path):
+    from coastforge.assets.library import read_manifest
+
+    src = tmp_path / "src"
+    (src / "real").mkdir(parents=True)
+    _box_glb(src / "real" / "boat.glb", (8, 2.5, 1.5))
+    (src / "boat.glb").symlink_to(src / "real" / "boat.glb")
+    specs, skipped = read_manifest(_manifest(src, [{"id": "b", "category": "boat", "mesh": "boat.glb"}]))
+    assert [s.id for s in specs] == ["b"] and not skipped
