@@ -106,27 +106,28 @@ def _refuse_damaged(path) -> None:
         raise InputError(f"{path} is truncated or corrupt: {why}; re-export or re-download it")
 
 
-def estimate_memory_bytes(width: int, height: int, gsd_m: float, stages=None, read_bytes_per_px: float = 0.0
-                          ) -> dict[str, float]:
+def estimate_memory_bytes(width: int, height: int, gsd_m: float, stages=None, read_bytes_per_px: float = 0.0,
+                          tiled: bool = False) -> dict[str, float]:
     """Estimated working memory (bytes, per part) of a run on a ``width`` x ``height`` image at ``gsd_m``.
 
     ``stages`` (a ``Config``) adds what its backends allocate beyond the image grid; without it, only the
-    image-grid rasters count (reading and one stage)."""
+    image-grid rasters count (reading and one stage). ``tiled``: segmentation and detection run per tile
+    (their resampled copies are bounded), the grid is the scene grid."""
     px = float(width) * float(height)
     parts = {"libraries": _BASE_BYTES, "image-sized rasters": px * (_BYTES_PER_PX + read_bytes_per_px)}
     if stages is None:
         return parts
-    if stages.detect.backend in ("learned", "hybrid"):
+    if stages.detect.backend in ("learned", "hybrid") and not tiled:
         from .detection.learned import DEFAULT_META, MAX_GSD_M, MIN_GSD_M
 
         if MIN_GSD_M <= gsd_m <= MAX_GSD_M:
             parts["learned detector"] = px * (gsd_m / DEFAULT_META["work_gsd_m"]) ** 2 * _BYTES_PER_DETECT_WORK_PX
-    if stages.segment.backend == "learned":
+    if stages.segment.backend == "learned" and not tiled:
         lo, hi, work = _segmenter_scales()
         if lo <= gsd_m <= hi:
             parts["learned segmenter"] = px * (gsd_m / work) ** 2 * _BYTES_PER_SEGMENT_WORK_PX
     v = stages.vegetation
-    if v.enabled and v.max_instances > 0:
+    if v.enabled:  # candidates are drawn over the whole extent before max_instances caps them
         from .vegetation import RULES
 
         live = [r for r in RULES if getattr(v, r.density_key) > 0]
@@ -152,9 +153,9 @@ def _segmenter_scales() -> tuple[float, float, float]:
 
 
 def check_memory(path, width: int, height: int, gsd_m: float, cfg: IOConfig, stages=None,
-                 read_bytes_per_px: float = 0.0) -> None:
+                 read_bytes_per_px: float = 0.0, tiled: bool = False) -> None:
     """Refuse a run whose estimated working memory is over ``io.max_memory_gb``, before any work."""
-    parts = estimate_memory_bytes(width, height, gsd_m, stages, read_bytes_per_px)
+    parts = estimate_memory_bytes(width, height, gsd_m, stages, read_bytes_per_px, tiled)
     total = sum(parts.values())
     if total <= cfg.max_memory_gb * 2**30:
         return

@@ -695,8 +695,10 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         W, H = grid.width_px, grid.height_px
         f = max(1.0, max(W, H) / scene_max_px)
         sw, sh = max(8, int(round(W / f))), max(8, int(round(H / f)))
-        # the stages after segmentation and detection run on the scene grid (tiles are bounded)
-        check_memory(req.image, sw, sh, grid.gsd_m * W / sw, config.io, stages=config)
+        # the stages after segmentation and detection run on the scene grid (tiles are bounded), beside the
+        # full-resolution class ids (1 byte per input pixel)
+        check_memory(req.image, sw, sh, grid.gsd_m * W / sw, config.io, stages=config,
+                     read_bytes_per_px=W * H / (sw * sh), tiled=True)
         overview = read_overview(src, sw, sh)
         sgrid = overview.grid
         fx = W / sw
