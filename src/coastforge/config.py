@@ -7,6 +7,8 @@ booleans, lists and quoted strings work) and checks it against the field's type.
 from __future__ import annotations
 
 import dataclasses
+import math
+import operator
 import sys
 import typing
 from dataclasses import dataclass, field, fields
@@ -26,6 +28,11 @@ from .errors import ConfigError
 class IOConfig:
     max_pixels: int = 1_100_000_000  # larger images are refused as decompression bombs (~33k x 33k)
     gsd_tolerance: float = 0.01  # relative disagreement allowed between --gsd, --size-m and a georeference
+    # plausible ground sample distances: finer or coarser values are almost always a wrong --gsd or a
+    # georeference in the wrong units (sen2ships' Sentinel-2 ports are 7-9 m/px; drones reach ~1 cm/px)
+    min_gsd_m: float = 0.005
+    max_gsd_m: float = 50.0
+    max_memory_gb: float = 8.0  # refuse an image whose run would need more working memory than this (estimate)
 
 
 @dataclass(frozen=True)
@@ -377,5 +384,163 @@ def load_config(preset: str = "default", path: str | Path | None = None, sets: l
     for item in sets:
         cfg = _apply(Config, cfg, parse_set(item), "")
     if seed is not None:
-        cfg = dataclasses.replace(cfg, seed=int(seed))
+        try:
+            if isinstance(seed, bool):
+                raise TypeError
+            seed = operator.index(seed)  # ints, numpy ints; not 1.5 or "3"
+        except TypeError:
+            raise ConfigError(f"--seed {seed!r} must be a whole number between 0 and {2**63 - 1}") from None
+        cfg = dataclasses.replace(cfg, seed=seed)
+    return validate_config(cfg)
+
+
+# ------------------------------------------------------------------------------------------ validation
+# Every numeric key must be finite and >= 0; the tables below tighten (or, for the few keys that may be
+# negative, replace) that rule. Checked when the config is built, so a bad value stops a run before any
+# file is written instead of failing deep inside a stage (or silently producing garbage).
+
+_POSITIVE = frozenset({  # divisors, sizes and scales: 0 would divide by zero or make an empty raster
+    "io.max_pixels", "io.min_gsd_m", "io.max_gsd_m", "io.max_memory_gb",
+    "segment.superpixel_m", "segment.work_gsd_m", "segment.max_work_px",
+    "terrain.max_depth_m", "terrain.depth_scale_m", "terrain.berth_depth_m", "terrain.quay_height_m",
+    "terrain.d50_mm", "terrain.beach_height_m", "terrain.revetment_slope", "terrain.bank_slope",
+    "terrain.beach_slope", "terrain.revetment_height_m", "terrain.revetment_toe_m", "terrain.bank_height_m",
+    "terrain.land_rise_scale_m", "terrain.shore_blend_m", "terrain.seam_m", "terrain.optical_max_depth_m",
+    "detect.max_boat_length_m", "detect.max_vehicle_length_m", "detect.slice_px", "detect.work_gsd_m",
+    "detect.water_model_m", "detect.pier_gsd_m", "detect.min_boat_aspect", "detect.max_boat_aspect",
+    "detect.split_max_aspect", "detect.buoy_max_area_m2", "detect.walkway_max_width_m",
+    "detect.finger_max_width_m", "detect.vehicle_hat_m", "detect.vehicle_dc", "detect.vehicle_pitch_m",
+    "library.view_gsd_m", "library.view_size_px", "library.lightings", "library.embed_scales",
+    "library.query_view_gsds_m", "library.query_view_max_px", "library.crowded_gsds_m",
+    "match.k", "match.scale_min", "match.scale_max", "match.shape_scale_sigma_boat",
+    "match.shape_scale_sigma_vehicle", "match.shape_scale_sigma_buoy", "match.shape_length_sigma",
+    "match.shape_width_sigma",
+    "export.gltf_max_vertices", "export.ue_max_size", "export.ticks_per_sec", "export.sdf_heightmap_max",
+    "export.texture_max_px",
+})
+
+_FRACTIONS = frozenset({  # scores, thresholds, IoUs, fractions and blend weights: [0, 1]
+    "io.gsd_tolerance", "detect.hybrid_support", "detect.min_score", "detect.nms_iou", "detect.vehicle_max_wet",
+    "detect.boat_core_headroom", "detect.vehicle_ground_frac", "match.sample_margin",
+    "match.shape_offset_weight_fine", "match.shape_offset_weight_coarse",
+    "render.shadow_softness", "render.water_turbidity", "render.glint",
+})
+
+_RANGES: dict[str, tuple[float, float]] = {  # inclusive; these replace the ">= 0" rule
+    "seed": (0, 2**63 - 1),  # numpy seeds are unsigned
+    "segment.learned_flips": (1, 4),  # as is, mirrored, flipped, both
+    "detect.snap_deg": (0.0, 90.0),
+    "vegetation.max_slope_deg_trees": (0.0, 90.0),
+    "render.sun_azimuth_deg": (-360.0, 360.0),  # an angle: negative is as good as positive
+    "render.sun_elevation_deg": (0.0, 90.0),
+    "match.heading_prior_ref_px": (-math.inf, math.inf),  # documented: <= 0 means no scaling
+}
+
+_ORDERED = (  # (smaller, larger): the first must not exceed the second
+    ("io.min_gsd_m", "io.max_gsd_m"),
+    ("match.scale_min", "match.scale_max"),
+    ("detect.min_boat_length_m", "detect.max_boat_length_m"),
+    ("detect.min_vehicle_length_m", "detect.max_vehicle_length_m"),
+    ("detect.buoy_min_area_m2", "detect.buoy_max_area_m2"),
+    ("detect.min_boat_aspect", "detect.max_boat_aspect"),
+)
+
+_CHOICES: dict[str, tuple[str, ...]] = {  # the values the consuming code knows
+    "segment.learned_water": ("fused", "classical", "net"),  # segmentation.learned.WATER_MODES
+    "match.mode": ("best", "sample"),  # matching.match_detections
+    "match.scale_mode": ("uniform", "per_axis"),  # placement.fit_scale
+    "detect.boat_mask": ("core", "struct", "region"),  # detection.classical
+    "library.backgrounds": ("water", "ground"),  # assets.library
+}
+
+_BACKEND_STAGES = {"segment.backend": "segment", "terrain.backend": "terrain", "detect.backend": "detect",
+                   "library.embedder": "embed", "export.formats": "export"}
+
+_UNITS = (("_per_100m2", "instances per 100 m²"), ("_m2", "square metres"), ("_mm", "millimetres"),
+          ("gsd", "metres per pixel"), ("gsds_m", "metres per pixel"), ("_m", "metres"), ("_px", "pixels"),
+          ("_deg", "degrees"), ("_gb", "GiB"))
+
+
+def _meaning(key: str) -> str:
+    """The key's unit and its comment in this file, for messages (e.g. "metres; depth far from shore")."""
+    section, _, name = key.rpartition(".")
+    unit = next((u for suffix, u in _UNITS if name.endswith(suffix) or (suffix == "gsd" and "gsd" in name)), "")
+    comment = ""
+    try:  # the field's own comment says what it is; read only when a message needs it
+        import inspect
+
+        cls = typing.get_type_hints(Config)[section] if section else Config
+        for line in inspect.getsource(cls).splitlines():
+            if line.strip().startswith(f"{name}:") and "#" in line:
+                comment = line.split("#", 1)[1].strip()
+                break
+    except (OSError, TypeError, KeyError):  # pragma: no cover - no source (frozen app)
+        pass
+    return "; ".join(p for p in (unit, comment) if p)
+
+
+def _bad(key: str, value: Any, rule: str) -> ConfigError:
+    what = _meaning(key)
+    how = "--seed N" if key == "seed" else f"--set {key}=..."
+    return ConfigError(f"config key {key} = {value!r} must be {rule}{f' ({what})' if what else ''}; "
+                       f"fix it with {how} or in the config file")
+
+
+def _flat(cfg: Any, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for f in fields(cfg):
+        v = getattr(cfg, f.name)
+        if dataclasses.is_dataclass(v):
+            out.update(_flat(v, f"{prefix}{f.name}."))
+        else:
+            out[f"{prefix}{f.name}"] = v
+    return out
+
+
+def validate_config(cfg: Config) -> Config:
+    """Check every value's range, choices and min/max pairs; raise ``ConfigError`` naming the key. Returns ``cfg``."""
+    from . import registry
+
+    flat = _flat(cfg)
+    for key, value in flat.items():
+        if isinstance(value, (str, bool)):
+            continue
+        items = value if isinstance(value, tuple) else (value,)
+        for v in items:
+            if isinstance(v, str) or isinstance(v, bool):
+                continue
+            each = "" if items is not value else "a list whose every item is "
+            if not math.isfinite(v):
+                raise _bad(key, value, each + "a finite number")
+            if key in _RANGES:
+                lo, hi = _RANGES[key]
+                if not lo <= v <= hi:
+                    raise _bad(key, value, f"{each}between {lo} and {hi}")
+            elif key in _POSITIVE and not v > 0:
+                raise _bad(key, value, each + "> 0")
+            elif key in _FRACTIONS and not 0 <= v <= 1:
+                raise _bad(key, value, each + "between 0 and 1")
+            elif not v >= 0:
+                raise _bad(key, value, each + ">= 0")
+    for lo_key, hi_key in _ORDERED:
+        if flat[lo_key] > flat[hi_key]:
+            raise ConfigError(f"config key {lo_key} = {flat[lo_key]!r} is larger than {hi_key} = {flat[hi_key]!r}; "
+                              f"the minimum must not exceed the maximum: fix one of them with --set or in the "
+                              "config file")
+    if flat["detect.slice_overlap_px"] >= flat["detect.slice_px"]:
+        raise ConfigError(f"config key detect.slice_overlap_px = {flat['detect.slice_overlap_px']!r} must be smaller "
+                          f"than detect.slice_px = {flat['detect.slice_px']!r} (windows would not advance); fix "
+                          "it with --set or in the config file")
+    for key, valid in _CHOICES.items():
+        for v in flat[key] if isinstance(flat[key], tuple) else (flat[key],):
+            if v not in valid:
+                raise ConfigError(f"config key {key} = {v!r} is not one of {', '.join(valid)}; fix it with "
+                                  f"--set {key}=... or in the config file")
+    for key, stage in _BACKEND_STAGES.items():
+        kind = "export format" if stage == "export" else f"{stage} backend"
+        valid = [s.name for s in registry.specs(stage)]
+        for v in flat[key] if isinstance(flat[key], tuple) else (flat[key],):
+            if v not in valid:
+                raise ConfigError(f"config key {key} = {v!r} is not a known {kind}; valid: "
+                                  f"{', '.join(valid)}; fix it with --set {key}=... or in the config file")
     return cfg

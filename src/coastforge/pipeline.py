@@ -251,18 +251,20 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     """Run the whole pipeline into ``req.out``, all-or-nothing: everything is written into a staging folder
     beside it and swapped into place only once the scene, its exports and its report are complete (a
     failed or killed run leaves ``req.out`` as it was). Inputs are checked before the first write."""
+    from .config import validate_config
     from .io import read_image
 
     from . import tiling
     from .fsio import output_folder
 
+    validate_config(config)  # a Config built in code gets the checks load_config makes
     tiled = tiling.needs_tiling(req.image)
     check_library_path(req.library)
     image = None
     t_read = None
     if not tiled:  # the image is read (and checked) before anything is written
         t0 = time.perf_counter()
-        image = read_image(req.image, req.gsd_m, req.size_m, config.io)
+        image = read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config)
         t_read = time.perf_counter() - t0
     notes: list[str] = []
     with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes) as stage:

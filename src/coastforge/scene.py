@@ -185,6 +185,21 @@ def object_from_dict(d: Any, where: str) -> SceneObject:
     )
 
 
+def position_margin_m(extent_m) -> float:
+    """How far outside the extent a position may lie: half the scene's larger side, at least 100 m (piers
+    and boats at the border reach a little out; anything farther is a unit or frame error)."""
+    return max(100.0, 0.5 * max(float(extent_m[0]), float(extent_m[1])))
+
+
+def _check_inside(where: str, what: str, x: float, y: float, extent_m) -> None:
+    w, h = float(extent_m[0]), float(extent_m[1])
+    m = position_margin_m(extent_m)
+    if not (math.isfinite(x) and math.isfinite(y) and abs(x) <= w / 2 + m and abs(y) <= h / 2 + m):
+        _fail(where, f"{what} is at x_m = {x!r}, y_m = {y!r}, more than {m:g} m outside the scene (x in "
+                     f"[{-w / 2:g}, {w / 2:g}], y in [{-h / 2:g}, {h / 2:g}] m); positions are metres from the "
+                     "image centre: fix or remove it")
+
+
 def object_to_dict(o: SceneObject) -> dict:
     d = {"id": o.id, "category": o.category, "asset_id": o.asset_id, "x_m": o.x_m, "y_m": o.y_m, "z_m": o.z_m,
          "yaw_deg": o.yaw_deg, "scale": list(o.scale), "length_m": o.length_m, "width_m": o.width_m,
@@ -232,7 +247,12 @@ def scene_from_dict(d: Any, where: str = "scene.json") -> Scene:
     objs = d.get("objects")
     if not isinstance(objs, list):
         _fail(where, f"objects = {objs!r} must be a list")
-    objects = tuple(object_from_dict(o, f"{where}: objects[{i}]") for i, o in enumerate(objs))
+    objects = []
+    for i, o in enumerate(objs):
+        named = f" (id {o['id']!r})" if isinstance(o, dict) and isinstance(o.get("id"), str) else ""
+        objects.append(object_from_dict(o, f"{where}: objects[{i}]{named}"))
+        _check_inside(where, f"object {objects[-1].id!r}", objects[-1].x_m, objects[-1].y_m, ext)
+    objects = tuple(objects)
     ids = [o.id for o in objects]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
@@ -319,29 +339,65 @@ def load_scene(path: str | Path, rasters: bool = True) -> Scene:
         cp = _resolve(folder, scene.terrain_paths["classes"], "terrain.classes")
         if hp.exists():
             height = read_height(hp)
+            _check_raster_grid(scene, hp, height.shape)
         if cp.exists():
+            from .io import image_damage
+
+            why = image_damage(cp)
+            if why:
+                raise SceneFormatError(f"{cp.name} is truncated or corrupt ({cp}: {why}); re-run coastforge "
+                                       "generate to write it again")
             classes = read_png(cp)
             if classes.ndim != 2 or classes.dtype != np.uint8:
                 raise SceneFormatError(f"{cp}: class map must be a single-band 8-bit PNG of class ids")
             if classes.max(initial=0) >= N_CLASSES:
                 raise SceneFormatError(f"{cp}: class id {int(classes.max())} is not one of 0..{N_CLASSES - 1}")
+            _check_raster_grid(scene, cp, classes.shape)
         if height is not None and classes is not None and height.shape != classes.shape:
             raise SceneFormatError(f"{hp} is {height.shape} but {cp} is {classes.shape}; they must share a grid")
     veg = scene.vegetation
     if scene.vegetation_ref is not None:
         vp = _resolve(folder, scene.vegetation_ref, "vegetation")
         veg = read_vegetation_csv(vp) if vp.exists() else Vegetation.empty()
+    if veg is not None and len(veg):  # exporters place every instance: none at 1e7 m
+        x, y = np.asarray(veg.x_m, float), np.asarray(veg.y_m, float)
+        m = position_margin_m(scene.extent_m)
+        bad = ~((np.abs(x) <= scene.extent_m[0] / 2 + m) & (np.abs(y) <= scene.extent_m[1] / 2 + m))  # NaN: bad
+        if bad.any():
+            i = int(np.argmax(bad))
+            _check_inside(str(path), f"vegetation instance {i} ({veg.asset_id[i]})", float(x[i]), float(y[i]),
+                          scene.extent_m)
     return replace(scene, height=height, classes=classes, vegetation=veg)
+
+
+def _check_raster_grid(scene: Scene, path: Path, shape: tuple[int, ...]) -> None:
+    """A raster must cover the scene's grid: extent_m / gsd_m pixels, or the scene grid of a tiled run."""
+    w_m, h_m = scene.extent_m
+    tiled = scene.provenance.get("tiled") if isinstance(scene.provenance, dict) else None
+    grid = tiled.get("scene_grid_px") if isinstance(tiled, dict) else None
+    if isinstance(grid, list) and len(grid) == 2 and all(isinstance(v, int) for v in grid):
+        ew, eh = grid
+        how = "the scene grid of the tiled run, provenance.tiled.scene_grid_px"
+    else:
+        ew, eh = round(w_m / scene.gsd_m), round(h_m / scene.gsd_m)
+        how = f"extent_m {w_m:g} x {h_m:g} m at gsd_m {scene.gsd_m:g}"
+    h, w = shape[:2]
+    if abs(w - ew) > 1 or abs(h - eh) > 1:  # 1 px: the extent rounds to whole pixels
+        raise SceneFormatError(f"{path} is {w}x{h} px but the scene's grid is {ew}x{eh} px ({how}); the raster "
+                               "belongs to another scene or was resized: restore it, or re-run coastforge generate")
 
 
 def read_height(path: Path) -> np.ndarray:
     import rasterio
 
+    from .io import gdal_reason
+
     try:
         with rasterio.open(path) as src:
             return src.read(1).astype(np.float32)
     except rasterio.errors.RasterioIOError as exc:
-        raise SceneFormatError(f"cannot read the height raster {path}: {exc}") from exc
+        raise SceneFormatError(f"{path.name} is truncated or corrupt ({path}: {gdal_reason(exc)}); re-run "
+                               "coastforge generate (or coastforge terrain) to write it again") from exc
 
 
 def read_vegetation_csv(path: Path) -> Vegetation:

@@ -121,14 +121,12 @@ def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[floa
     cfg = config or IOConfig()
     path = Path(path)
     with cio._open(path) as src:
-        w, h, n = src.width, src.height, src.count
-        if w <= 0 or h <= 0:
-            raise InputError(f"{path} has zero size ({w}x{h} px)")
+        w, h = src.width, src.height
+        cio.check_image_size(path, w, h, whole=False)
         if w * h > cfg.max_pixels:
             raise InputError(f"{path} is {w}x{h} = {w * h / 1e6:.0f} Mpx, over io.max_pixels "
                              f"({cfg.max_pixels / 1e6:.0f} Mpx); raise it with --set io.max_pixels=N if you mean it")
-        if n < 3:
-            raise InputError(f"{path} has {n} band(s); coastforge needs a colour (RGB) image")
+        cio.check_bands(src, path)
         dtype = src.dtypes[0]
         if dtype not in ("uint8", "uint16", "float32", "float64", "int16"):
             raise InputError(f"{path} has pixel type {dtype}; expected 8- or 16-bit RGB")
@@ -139,7 +137,8 @@ def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[floa
                                  "tiles and cannot be reprojected on the fly: warp it to its UTM zone first "
                                  "(gdalwarp -t_srs EPSG:326xx)")
             geo_gsd, transform, crs = cio.north_up_georef(src, path)
-        gsd = cio.resolve_gsd(w, h, gsd_m, size_m, geo_gsd, cfg.gsd_tolerance, str(path))
+        gsd = cio.resolve_gsd(w, h, gsd_m, size_m, geo_gsd, cfg.gsd_tolerance, str(path),
+                              (cfg.min_gsd_m, cfg.max_gsd_m))
         stretch = None
         if dtype != "uint8":
             # one stretch for every tile, from a decimated read (GDAL uses overviews when the file has them)
@@ -150,6 +149,7 @@ def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[floa
                 raise InputError(f"{path} holds no finite pixel values")
             lo, hi = (float(v) for v in np.percentile(finite, [0.5, 99.5]))
             stretch = (lo, hi if hi > lo else lo + 1.0)
+    cio._refuse_damaged(path)
     return Source(str(path), Grid(w, h, gsd, crs, transform), stretch)
 
 
@@ -681,13 +681,14 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     from .segmentation.outputs import write_segmentation
     from .terrain import estimate_terrain
     from .terrain.outputs import write_terrain_outputs
+    from .config import validate_config
+    from .io import check_memory
     from .vegetation import scatter
 
     _check_tiling(tile_px, overlap_px)
     if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
         raise ConfigError(f"scene_max_px = {scene_max_px!r} must be an integer ≥ 127 (e.g. 4096)")
-    out = Path(req.out)  # the staging folder of run_generate
-    out.mkdir(parents=True, exist_ok=True)
+    validate_config(config)
     timer = _Timer(progress)
     seed = config.seed
     with timer.stage("read"):
@@ -696,9 +697,15 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         W, H = grid.width_px, grid.height_px
         f = max(1.0, max(W, H) / scene_max_px)
         sw, sh = max(8, int(round(W / f))), max(8, int(round(H / f)))
+        # the stages after segmentation and detection run on the scene grid (tiles are bounded), beside the
+        # full-resolution class ids (1 byte per input pixel)
+        check_memory(req.image, sw, sh, grid.gsd_m * W / sw, config.io, stages=config,
+                     read_bytes_per_px=W * H / (sw * sh), tiled=True)
         overview = read_overview(src, sw, sh)
         sgrid = overview.grid
         fx = W / sw
+    out = Path(req.out)  # the staging folder of run_generate; every input check done: the first write here
+    out.mkdir(parents=True, exist_ok=True)
     # the library loads beside segmentation and detection; side rasters are written beside the later stages
     # (see pipeline.run_generate)
     with _Background() as bg:

@@ -187,12 +187,17 @@ def parse_asset_entry(a: Any, base: Path, index: int, where: str, lenient: bool 
         raise LibraryError(f"asset {aid!r}: 'mesh' must be a path relative to the manifest, got {mesh!r}")
     if os.path.isabs(mesh) or re.match(r"^[A-Za-z]:[\\/]", mesh):
         raise LibraryError(f"asset {aid!r}: mesh path {mesh!r} is absolute; give it relative to the manifest folder")
-    # lexical check (no symlink resolution): a manifest may link models in from elsewhere on purpose
     base_n = os.path.normpath(os.path.abspath(base))
     full = os.path.normpath(os.path.join(base_n, mesh))
     if os.path.commonpath([base_n, full]) != base_n:
         raise LibraryError(f"asset {aid!r}: mesh path {mesh!r} escapes the manifest folder {base}; "
-                           "move the model inside it (or link it there)")
+                           "copy the model inside it")
+    # and once links are resolved: a symlink in the folder to a file elsewhere escapes it just as ../ does
+    # (a manifest from someone else could point the build at any file on this machine)
+    real_base, real = os.path.realpath(base_n), os.path.realpath(full)
+    if os.path.commonpath([real_base, real]) != real_base:
+        raise LibraryError(f"asset {aid!r}: mesh path {mesh!r} is a link to {real}, outside the manifest folder "
+                           f"{base}; copy the model inside it")
     tags = a.get("tags", ())
     if isinstance(tags, str) or not all(isinstance(t, str) for t in tags):
         raise LibraryError(f"asset {aid!r}: tags = {tags!r} must be a list of strings")
@@ -559,7 +564,8 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
         raw = load_mesh(spec.mesh, spec.id)
         mesh, norm = normalise_mesh(raw, spec.category, asset_id=spec.id, length_m=spec.length_m,
                                     height_m=spec.height_m, up_axis=spec.up_axis, forward_axis=spec.forward_axis,
-                                    unit=spec.unit, suffix=spec.mesh.suffix, keep_z=spec.origin == "keep")
+                                    unit=spec.unit, suffix=spec.mesh.suffix, keep_z=spec.origin == "keep",
+                                    source=spec.mesh)
         floating = spec.floating if spec.floating is not None else spec.category in FLOATING
         draft = spec.draft_m if spec.draft_m is not None else (estimate_draft(spec.category, norm.dims_m)
                                                                if floating else 0.0)

@@ -259,11 +259,11 @@ def _rotation(up: tuple[int, int], fwd: tuple[int, int]) -> np.ndarray:
 def normalise_mesh(mesh, category: str, *, asset_id: str = "", length_m: float | None = None,
                    height_m: float | None = None, up_axis: str | None = None,
                    forward_axis: str | None = None, unit: str | float | None = None, suffix: str = ".glb",
-                   keep_z: bool = False):
+                   keep_z: bool = False, source: str | Path | None = None):
     """Return ``(mesh in metres, z up, forward +x, footprint centred, base at z=0; Normalisation)``.
 
     ``keep_z`` keeps the model's own vertical origin (models already authored with z = 0 at the water
-    level or the ground, like the starter kit)."""
+    level or the ground, like the starter kit). ``source``: the model file, for messages."""
     name = asset_id or "?"
     notes: list[str] = []
     pts = _surface_points(mesh)
@@ -307,6 +307,7 @@ def normalise_mesh(mesh, category: str, *, asset_id: str = "", length_m: float |
         scale, unit_name = _unit_scale(unit, name)
     else:
         scale, unit_name, note = _guess_unit(ext, category)
+        _refuse_absurd_guess(name, source, ext, category, scale, unit_name)
         notes.append(note)
     m = mesh.copy()
     t = np.eye(4)
@@ -352,6 +353,23 @@ def _guess_unit(ext, category: str) -> tuple[float, str, str]:
             + ("plausible" if plausible else "unusual") + f" for a {category} ({lo:g}–{hi:g} m); "
             "give length_m or height_m for the real size")
     return best[1], best[0], note
+
+
+ABSURD_FACTOR = 2.0  # a guessed size this far outside the category's range is no unit's fault: refuse it
+
+
+def _refuse_absurd_guess(name: str, source, ext, category: str, scale: float, unit: str) -> None:
+    """No unit (m, cm, mm) gives a believable size: a placed 1 km boat or 1 mm car would be garbage."""
+    measure, lo, _typical, hi = _SIZE_PRIOR[category]
+    got = characteristic_size(ext, category) * scale
+    if lo / ABSURD_FACTOR <= got <= hi * ABSURD_FACTOR:
+        return
+    where = f" ({source})" if source else ""
+    raise LibraryError(
+        f"asset {name!r}{where}: its raw extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} units and no unit "
+        f"makes it a plausible {category}: the closest guess, {unit}, gives a {measure} of {got:.4g} m "
+        f"({lo:g}-{hi:g} m expected); state its unit in the manifest (unit = \"m\", \"cm\", \"mm\" or metres per "
+        "unit) or its real length_m / height_m")
 
 
 def footprint_mask(mesh, n: int, gsd: float) -> np.ndarray:

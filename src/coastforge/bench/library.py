@@ -300,7 +300,7 @@ def build_benchmark(manifest: Path | None, n_assets: int, workers: int | None, s
         for i in range(n_assets):
             s = specs[i % len(specs)]
             link = src / f"{i:03d}_{s.mesh.name}"
-            link.symlink_to(s.mesh)
+            shutil.copyfile(s.mesh, link)  # a copy: manifests refuse links to files outside their folder
             e = {"id": f"{s.id}_{i:03d}", "category": s.category, "mesh": link.name,
                  "up_axis": s.up_axis, "forward_axis": s.forward_axis}
             jitter = float(rng.uniform(0.9, 1.1)) if i >= len(specs) else 1.0

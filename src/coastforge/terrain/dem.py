@@ -18,8 +18,12 @@ from typing import Sequence
 import numpy as np
 
 from ..config import TerrainConfig
-from ..errors import InputError
+from ..errors import CoastforgeWarning, InputError
 from ..types import Grid
+
+# deeper than the Challenger Deep and higher than Everest: such values are an undeclared nodata value
+# (1e30, -3.4e38, 32767 in feet x ...) or wrong units, and bilinear resampling would smear them into real cells
+DEM_MAX_ABS_M = 12_000.0
 
 
 @dataclass(frozen=True)
@@ -107,8 +111,10 @@ def scene_georeference(grid: Grid, placement: Placement | None = None):
     return crs, Affine(*grid.transform)
 
 
-def reproject_dem(src_path: Path, grid: Grid, dst_crs, dst_transform) -> np.ndarray:
-    """One DEM on the scene grid, float32 with NaN where it has no data."""
+def reproject_dem(src_path: Path, grid: Grid, dst_crs, dst_transform, scale: float = 1.0,
+                  offset_m: float = 0.0) -> np.ndarray:
+    """One DEM on the scene grid, float32 with NaN where it has no data (raw values: ``scale`` and
+    ``offset_m`` only say which values are absurd heights, beyond ±``DEM_MAX_ABS_M`` m)."""
     import rasterio
     from rasterio.errors import RasterioIOError, WindowError
     from rasterio.warp import Resampling, reproject, transform_bounds
@@ -147,7 +153,13 @@ def reproject_dem(src_path: Path, grid: Grid, dst_crs, dst_transform) -> np.ndar
             win = None  # bounds that do not transform (e.g. beyond a projection's domain): read it all
         if not overlap:
             _no_data(src, src_path, dst_crs, x0, y0, x1, y1)
-        data = src.read(1, window=win, masked=True)
+        try:
+            data = src.read(1, window=win, masked=True)
+        except RasterioIOError as exc:
+            from ..io import gdal_reason
+
+            raise InputError(f"--dem {src_path} is truncated or corrupt: {gdal_reason(exc)}; re-download or "
+                             "re-export it") from exc
         src_transform = src.transform
         if win is not None:
             from affine import Affine
@@ -156,6 +168,7 @@ def reproject_dem(src_path: Path, grid: Grid, dst_crs, dst_transform) -> np.ndar
         arr = data.filled(np.nan).astype(np.float32) if np.ma.isMaskedArray(data) else data.astype(np.float32)
         if src.nodata is not None and not np.isnan(src.nodata):
             arr[arr == np.float32(src.nodata)] = np.nan
+        _drop_absurd(arr, src_path, scale, offset_m)
         dst = np.full(grid.shape, np.nan, np.float32)
         reproject(arr, dst, src_transform=src_transform, src_crs=src.crs, src_nodata=np.nan,
                   dst_transform=dst_transform, dst_crs=dst_crs, dst_nodata=np.nan,
@@ -163,6 +176,31 @@ def reproject_dem(src_path: Path, grid: Grid, dst_crs, dst_transform) -> np.ndar
         if not np.isfinite(dst).any():
             _no_data(src, src_path, dst_crs, x0, y0, x1, y1)
     return dst
+
+
+def _drop_absurd(arr: np.ndarray, src_path: Path, scale: float, offset_m: float) -> None:
+    """NaN (no data) for heights beyond ±DEM_MAX_ABS_M m, with a warning; refuse a DEM with nothing else."""
+    import warnings
+
+    valid = np.isfinite(arr)
+    if not valid.any():
+        raise InputError(f"--dem {src_path} holds only nodata (or NaN) under the scene; check it is the right "
+                         "file and that its nodata value is set right (gdalinfo -stats)")
+    with np.errstate(over="ignore", invalid="ignore"):
+        absurd = valid & ~(np.abs(arr.astype(np.float64) * scale + offset_m) <= DEM_MAX_ABS_M)
+    n = int(absurd.sum())
+    if not n:
+        return
+    example = float(arr[absurd][0])
+    fix = (f"declare the file's nodata value (gdal_edit.py -a_nodata {example:g} FILE), or fix its units with "
+           "--dem FILE:scale=S")
+    if n == int(valid.sum()):
+        raise InputError(f"--dem {src_path}: every value under the scene is beyond ±{DEM_MAX_ABS_M:g} m (e.g. "
+                         f"{example:g}), which no real height is; {fix}")
+    warnings.warn(f"--dem {src_path}: {n} of {int(valid.sum())} cells under the scene hold values beyond "
+                  f"±{DEM_MAX_ABS_M:g} m (e.g. {example:g}); they are treated as nodata. To silence this, {fix}",
+                  CoastforgeWarning, stacklevel=3)
+    arr[absurd] = np.nan
 
 
 def _no_data(src, src_path, dst_crs, x0, y0, x1, y1):
@@ -211,7 +249,7 @@ def fuse_dems(estimate: np.ndarray, grid: Grid, dems: Sequence, config: TerrainC
     mosaic = np.full(grid.shape, np.nan, np.float32)
     per_file = []
     for s in sources:
-        v = reproject_dem(s.path, grid, crs, transform)
+        v = reproject_dem(s.path, grid, crs, transform, s.scale, s.offset_m)
         ok = np.isfinite(v)
         mosaic[ok] = v[ok] * np.float32(s.scale) + np.float32(s.offset_m)
         per_file.append(float(ok.mean()))
