@@ -370,10 +370,22 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
     export_onnx(net, onnx_path)
     torch.save(net.state_dict(), out / "detector.pt")
     synth = [it for it in sampler.items if "seed" in it]
-    datasets = [{"name": "coastforge synthetic levels (coastforge.train.detector_data)",
-                 "licence": "Apache-2.0 (this project)", "images": len(synth)}] if synth else []
-    for d in sampler.dirs:  # real sets (coastforge.train.detector_real) name themselves in their index
-        datasets += json.loads((d / "index.json").read_text()).get("datasets", [])
+    datasets = []
+    for d in sampler.dirs:
+        head = json.loads((d / "index.json").read_text())
+        if head.get("datasets"):  # real sets (coastforge.train.detector_real) name themselves in their index
+            datasets += head["datasets"]
+            continue
+        n = len(head.get("items", []))
+        lib, looks = head.get("library", "kit"), head.get("looks", "kit")
+        if lib == "kit" and looks == "kit":
+            datasets.append({"name": "coastforge synthetic levels (coastforge.train.detector_data)",
+                             "licence": "Apache-2.0 (this project)", "images": n})
+        else:  # renders of another library's models: those keep their own licence (add it to the card)
+            datasets.append({"name": f"coastforge synthetic levels (coastforge.train.detector_data --library {lib} "
+                                     f"--looks {looks})",
+                             "licence": "Apache-2.0 (this project) for the renders; the library's models keep "
+                                        "their own licences", "images": n})
     meta = {
         "format": "coastforge.learned_detector/1",
         "datasets": datasets,
