@@ -210,20 +210,42 @@ def test_plausible_images_still_read(tmp_path, size, gsd):
     assert img.rgb.shape == (*size, 3)
 
 
-def test_geographic_geotiff_with_a_wrong_scale_refused_by_the_memory_estimate(tmp_path):
-    """0.0004° pixels (~40 m) over 1000 px: the run's vegetation scatter alone would take hundreds of GiB."""
+def test_geographic_geotiff_with_a_wrong_scale_stays_bounded(tmp_path):
+    """0.0004° pixels (~40 m) over 1000 px, a 40 km scene: its vegetation scatter once tried to allocate
+    hundreds of GiB. It is bounded now; the estimate says so and refuses only above io.max_memory_gb."""
     from rasterio.transform import from_origin
 
     from coastforge.errors import InputError
     from coastforge.io import estimate_memory_bytes, read_image
 
     p = _geotiff(tmp_path / "geo.tif", "EPSG:4326", from_origin(10.0, 44.0, 0.0004, 0.0004), h=1000, w=1000)
-    with pytest.warns(UserWarning, match="reprojected"), pytest.raises(InputError) as e:
-        read_image(p, stages=load_config())
-    assert "GiB of working memory" in str(e.value) and "vegetation.enabled=false" in str(e.value)
-    assert sum(estimate_memory_bytes(1000, 1000, 40.0, load_config()).values()) > 100 * 2**30
+    assert sum(estimate_memory_bytes(1000, 1000, 40.0, load_config()).values()) < 2 * 2**30
     with pytest.warns(UserWarning, match="reprojected"):
-        assert read_image(p).grid.gsd_m > 30  # reading alone (a benchmark) is fine
+        assert read_image(p, stages=load_config()).grid.gsd_m > 30
+    small = load_config(sets=["io.max_memory_gb=0.2"])
+    with pytest.warns(UserWarning, match="reprojected"), pytest.raises(InputError) as e:
+        read_image(p, config=small.io, stages=small)
+    assert "GiB of working memory" in str(e.value) and "io.max_memory_gb" in str(e.value)
+
+
+def test_vegetation_scatter_is_bounded_on_a_large_extent():
+    """A 20 km x 20 km scene of grass and trees: the densities are thinned to max_instances before any
+    point is drawn (it once drew millions of candidates to drop them)."""
+    from coastforge.classes import GRASS, TREES
+    from coastforge.config import VegetationConfig
+    from coastforge.types import Grid
+    from coastforge.vegetation import scatter
+
+    n = 1000
+    classes = np.full((n, n), GRASS, np.uint8)
+    classes[:, : n // 2] = TREES
+    grid = Grid(n, n, 20.0)
+    cfg = VegetationConfig(max_instances=5000)
+    res = scatter(classes, np.ones((n, n), np.float32), grid, {"tree": ["t"], "grass": ["g"], "bush": ["b"]}, [],
+                  cfg, seed=0)
+    assert 3000 < len(res.vegetation) <= 5000
+    cats = set(res.vegetation.asset_id)
+    assert cats == {"t", "g", "b"}  # every rule keeps its share
 
 
 def test_memory_estimate_grows_with_pixels_and_gsd():
@@ -263,9 +285,9 @@ def test_generate_refuses_a_run_over_the_memory_limit_before_writing(tmp_path):
 
     p = _geotiff(tmp_path / "geo.tif", "EPSG:4326", from_origin(10.0, 44.0, 0.0004, 0.0004), h=1000, w=1000)
     out = tmp_path / "out"
-    r = CliRunner().invoke(cli, ["generate", str(p), "--out", str(out)])
+    r = CliRunner().invoke(cli, ["generate", str(p), "--out", str(out), "--set", "io.max_memory_gb=0.2"])
     assert r.exit_code == 2, r.output
-    assert "GiB of working memory, over io.max_memory_gb = 8" in r.output and "Traceback" not in r.output
+    assert "GiB of working memory, over io.max_memory_gb = 0.2" in r.output and "Traceback" not in r.output
     assert _no_output(out)
 
 

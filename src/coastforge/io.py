@@ -127,13 +127,13 @@ def estimate_memory_bytes(width: int, height: int, gsd_m: float, stages=None, re
         if lo <= gsd_m <= hi:
             parts["learned segmenter"] = px * (gsd_m / work) ** 2 * _BYTES_PER_SEGMENT_WORK_PX
     v = stages.vegetation
-    if v.enabled:  # candidates are drawn over the whole extent before max_instances caps them
-        from .vegetation import RULES
+    if v.enabled:  # candidates over the whole extent, at most vegetation.MAX_CANDIDATES cells per rule
+        from .vegetation import MAX_CANDIDATES, RULES
 
         live = [r for r in RULES if getattr(v, r.density_key) > 0]
         if live:
             cell = min(max(r.spacing_m, v.min_spacing_m if r.asset_category == "tree" else 0.0) for r in live)
-            parts["vegetation scatter"] = px * gsd_m**2 / cell**2 * _BYTES_PER_SCATTER_CELL
+            parts["vegetation scatter"] = min(px * gsd_m**2 / cell**2, MAX_CANDIDATES) * _BYTES_PER_SCATTER_CELL
     return parts
 
 

@@ -65,14 +65,21 @@ def footprint_mask(objects, grid: Grid, margin_m: float) -> np.ndarray:
     return mask.astype(bool)
 
 
+MAX_CANDIDATES = 4_000_000  # candidate cells per rule (about 100 MB of working arrays)
+
+
 def _poisson_points(mask_density: np.ndarray, grid: Grid, density_per_100m2: float, spacing_m: float,
                     rng: np.random.Generator) -> np.ndarray:
     """Blue-noise points: one jittered candidate per cell of size ``spacing``, kept with the local density's
-    probability, then thinned so no two are closer than ``spacing`` (KD-tree)."""
+    probability, then thinned so no two are closer than ``spacing`` (KD-tree). Over an extent that would
+    need more than ``MAX_CANDIDATES`` cells, the cells grow (never beyond one expected point per cell at
+    full density), so memory stays bounded on a port of many km²."""
     from scipy.spatial import cKDTree
 
     w, h = grid.extent_m
     cell = spacing_m
+    if density_per_100m2 > 0 and (w / cell) * (h / cell) > MAX_CANDIDATES:
+        cell = max(spacing_m, min(float(np.sqrt(w * h / MAX_CANDIDATES)), float(np.sqrt(100.0 / density_per_100m2))))
     nx, ny = int(np.ceil(w / cell)), int(np.ceil(h / cell))
     if nx * ny == 0 or density_per_100m2 <= 0:
         return np.zeros((0, 2))
@@ -110,7 +117,7 @@ def scatter(classes: np.ndarray, height: np.ndarray | None, grid: Grid, assets_b
     slope = slope_deg(z, grid.gsd_m)
     clear = ~footprint_mask(objects, grid, margin_m=1.0)
     rows: dict[str, list] = {k: [] for k in ("asset_id", "category", "x_m", "y_m", "z_m", "yaw_deg", "scale")}
-    masks, counts = {}, {}
+    masks, counts, dens_of = {}, {}, {}
     for rule in RULES:
         ids = list(assets_by_category.get(rule.asset_category, ()))
         if not ids:
@@ -127,9 +134,16 @@ def scatter(classes: np.ndarray, height: np.ndarray | None, grid: Grid, assets_b
             dens[slope > config.max_slope_deg_trees] = 0
         dens[~clear] = 0
         masks[rule.name] = np.clip(dens * 255, 0, 255).astype(np.uint8)
+        dens_of[rule.name] = (rule, ids, dens)
+    # where the rules together would scatter more than max_instances, every density is thinned by the same
+    # factor first (the proportions stay), so a port of many km² never draws millions of points to drop them
+    area_px = grid.gsd_m ** 2 / 100.0
+    expected = sum(float(d.sum()) * area_px * getattr(config, r.density_key) for r, _i, d in dens_of.values())
+    thin = min(1.0, config.max_instances / expected) if expected > 0 else 1.0
+    for rule, ids, dens in dens_of.values():
         rng = stage_rng(seed, "vegetation", rule.name)
         spacing = max(rule.spacing_m, config.min_spacing_m if rule.asset_category == "tree" else rule.spacing_m)
-        pts = _poisson_points(dens, grid, getattr(config, rule.density_key), spacing, rng)
+        pts = _poisson_points(dens, grid, getattr(config, rule.density_key) * thin, spacing, rng)
         counts[rule.name] = len(pts)
         if not len(pts):
             continue
