@@ -141,4 +141,7 @@ def main(argv: list[str] | None = None) -> None:
     if threading.current_thread() is threading.main_thread() and \
             signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _on_sigint)
+    # GDAL's default handler prints raw lines such as "ERROR 1: PROJ: ... crs not found" before our message;
+    # rasterio turns the errors that matter into exceptions, whose reason our messages quote
+    os.environ.setdefault("CPL_LOG", os.devnull)
     cli.main(args=argv if argv is not None else sys.argv[1:], prog_name="coastforge")
