@@ -466,7 +466,7 @@ def _swap_in(staging: Path, out: Path) -> None:
 
 @contextlib.contextmanager
 def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bool = False, command: str = "",
-                  notes: list[str] | None = None) -> Iterator[Path]:
+                  notes: list[str] | None = None, inputs=()) -> Iterator[Path]:
     """Write the folder ``out`` all-or-nothing; yields the staging folder to write into.
 
     ``update=False``: the run makes the whole folder. An existing non-empty ``out`` is refused unless
@@ -474,7 +474,8 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
     ``update=True``: the run changes an existing folder (a scene's exports, its terrain): staging starts
     as a hard-linked copy of it. Either way ``out`` changes only when the block completes; a failure or a
     kill leaves it as it was, plus the staging folder, which the next run removes. ``notes`` receives what
-    recovery did."""
+    recovery did. ``inputs``: the run's input files; --overwrite refuses to replace a folder holding one
+    (even one whose marker predates the list of written files)."""
     out = Path(out)
     check_output_parent(out)
     if out.is_symlink():  # a link to a folder: write the folder it names (swapping would replace the link)
@@ -486,6 +487,14 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
         if not is_coastforge_output(out):
             raise OutputExistsError(f"output folder {out} holds files coastforge did not write; --overwrite "
                                     "replaces only a folder an earlier run made: choose another --out")
+        for p in inputs:
+            if p is None or not Path(p).exists():
+                continue
+            where = ("is the output folder" if Path(p).resolve() == out.resolve() else
+                     "is inside the output folder" if out.resolve() in Path(p).resolve().parents else None)
+            if where:
+                raise OutputExistsError(f"{p} {where} {out}, which --overwrite replaces whole; it is an input of "
+                                        "this run: move it out of it first, or choose another --out")
         foreign = foreign_files(out)
         if foreign:
             shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")

@@ -267,8 +267,12 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         image = read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config)
         t_read = time.perf_counter() - t0
     check_dems(req, image)
+    from .terrain.dem import DemSource
+
     notes: list[str] = []
-    with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes) as stage:
+    inputs = (req.image, req.library, *(DemSource.parse(d).path for d in req.dems))
+    with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes,
+                       inputs=inputs) as stage:
         sreq = replace(req, out=str(stage), overwrite=False)
         if tiled:  # large orthophotos run by windows in bounded memory
             res = tiling.generate_tiled(sreq, config, progress)

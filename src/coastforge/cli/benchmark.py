@@ -30,7 +30,7 @@ def benchmark(out, presets, gsds, library, as_json, overwrite, config):
     names = [p.strip() for p in presets.split(",") if p.strip()] or None
     names, g = check_benchmark(names, g, library)  # every check before the first write
     # all-or-nothing like every output folder: a stopped benchmark leaves --out as it was
-    with staged(out, overwrite=overwrite) as stage:
+    with staged(out, overwrite=overwrite, inputs=(library,)) as stage:
         res = run_benchmark(stage, names, config.seed, g, library, config, True,
                             log=lambda s: click.echo(s, err=True))
     click.echo(json.dumps(res, indent=2) if as_json else to_markdown(res))

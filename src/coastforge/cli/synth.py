@@ -29,7 +29,7 @@ def synth(preset: str, seed: int, out_dir: str, gsd: str, library: str | None, o
     from ..synth import synth_many
     from .options import staged
 
-    with staged(out_dir, overwrite=overwrite) as stage:  # all-or-nothing: every level, or none
+    with staged(out_dir, overwrite=overwrite, inputs=(library,)) as stage:  # all-or-nothing: every level, or none
         results = synth_many(preset, seed, stage, gsd, library, overwrite=True)
 
     def final(p) -> Path:  # a path in the staging folder -> where it is now
