@@ -290,8 +290,8 @@ def is_coastforge_output(path: Path) -> bool:
 
 
 # written into a completed folder later, outside a staged run: `coastforge report` (report.html beside
-# scene.json) and `coastforge batch` (an item's .done marker)
-_LATE_FILES = frozenset({"report.html", ".done"})
+# scene.json), `coastforge batch` (an item's .done marker) and `make demo` (its .coastforge-demo mark)
+_LATE_FILES = frozenset({"report.html", ".done", ".coastforge-demo"})
 
 
 def _all_files(folder: Path) -> set[str]:
