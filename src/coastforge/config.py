@@ -380,7 +380,12 @@ def load_config(preset: str = "default", path: str | Path | None = None, sets: l
         p = Path(path)
         if not p.is_file():
             raise ConfigError(f"config file {p} does not exist; pass an existing TOML file with --config")
-        cfg = _apply(Config, cfg, _read_toml(p.read_text(encoding="utf-8"), str(p)), "")
+        try:
+            text = p.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ConfigError(f"config file {p} is not a text file (an image?); pass a TOML file with sections "
+                              "as in the presets, e.g. [terrain] max_depth_m = 12") from None
+        cfg = _apply(Config, cfg, _read_toml(text, str(p)), "")
     for item in sets:
         cfg = _apply(Config, cfg, parse_set(item), "")
     if seed is not None:
@@ -434,7 +439,13 @@ _RANGES: dict[str, tuple[float, float]] = {  # inclusive; these replace the ">= 
     "render.sun_azimuth_deg": (-360.0, 360.0),  # an angle: negative is as good as positive
     "render.sun_elevation_deg": (0.0, 90.0),
     "match.heading_prior_ref_px": (-math.inf, math.inf),  # documented: <= 0 means no scaling
+    "segment.smooth_px": (0, 255),  # a majority filter radius; OpenCV's box filters take no more
+    "library.view_size_px": (8, 8192),  # what the view renderer draws
 }
+
+# heights, depths and lengths of the terrain model: beyond 12 km (deeper than any sea, higher than any coast)
+# a value is a unit mistake, and the height rasters' float32 overflow; each must also pass its rule above
+TERRAIN_MAX_ABS_M = 12_000.0
 
 _ORDERED = (  # (smaller, larger): the first must not exceed the second
     ("io.min_gsd_m", "io.max_gsd_m"),
@@ -522,6 +533,9 @@ def validate_config(cfg: Config) -> Config:
                 raise _bad(key, value, each + "between 0 and 1")
             elif not v >= 0:
                 raise _bad(key, value, each + ">= 0")
+            if key.startswith("terrain.") and key.endswith("_m") and abs(v) > TERRAIN_MAX_ABS_M:
+                raise _bad(key, value, f"{each}at most {TERRAIN_MAX_ABS_M:g}, as no coast is higher or sea deeper "
+                                       "than 12 km")
     for lo_key, hi_key in _ORDERED:
         if flat[lo_key] > flat[hi_key]:
             raise ConfigError(f"config key {lo_key} = {flat[lo_key]!r} is larger than {hi_key} = {flat[hi_key]!r}; "

@@ -221,8 +221,22 @@ def _box_pixels(scene: Scene, minx: float, miny: float, maxx: float, maxy: float
     return None
 
 
+def check_same_ground(truth: Scene, pred: Scene) -> None:
+    """Refuse to compare scenes of different extents: positions are metres from each scene's centre and the
+    rasters are resampled onto the truth's grid, so two different places would give numbers, all wrong."""
+    from .errors import InputError
+
+    (tw, th), (pw, ph) = truth.extent_m, pred.extent_m
+    tol = max(2.0 * max(truth.gsd_m, pred.gsd_m), 0.01 * max(tw, th))
+    if abs(tw - pw) > tol or abs(th - ph) > tol:
+        raise InputError(f"the truth covers {tw:g} x {th:g} m but the prediction {pw:g} x {ph:g} m: they are not "
+                         "the same ground; evaluate a scene generated from the truth's own image (listed in its "
+                         "inputs.json) at its GSD")
+
+
 def evaluate_scenes(truth: Scene, pred: Scene) -> dict:
-    """All metrics of DESIGN.md §5 as one JSON-ready dict."""
+    """All metrics of DESIGN.md §5 as one JSON-ready dict. The two scenes must cover the same ground."""
+    check_same_ground(truth, pred)
     t_objs = [o for o in truth.objects if o.category in EVALUATED_CATEGORIES]
     p_objs = [o for o in pred.objects if o.category in EVALUATED_CATEGORIES]
     overall = object_metrics(t_objs, p_objs)

@@ -21,19 +21,52 @@ import numpy as np
 from .errors import InputError, OutputExistsError
 
 
+# ---- Ctrl-C -----------------------------------------------------------------------------------------------
+# Some libraries catch BaseException around their imports (trimesh does), so a Ctrl-C that lands there is
+# swallowed and the run would go on to write its output. The CLI's SIGINT handler also sets this flag, and
+# every write checks it before it makes anything visible.
+_INTERRUPTED = False
+
+
+def note_interrupt() -> None:
+    """Record a Ctrl-C (called by the CLI's SIGINT handler)."""
+    global _INTERRUPTED
+    _INTERRUPTED = True
+
+
+def clear_interrupt() -> None:
+    global _INTERRUPTED
+    _INTERRUPTED = False
+
+
+def check_interrupted() -> None:
+    """Raise KeyboardInterrupt if a Ctrl-C arrived, even one a library swallowed."""
+    if _INTERRUPTED:
+        raise KeyboardInterrupt
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it is renamed onto ``path``."""
+    """Yield a temporary path beside ``path``; on success it is renamed onto ``path``. An OS error on the
+    temporary file names ``path`` (the user never chose the temporary name)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent)
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        check_interrupted()
         # mkstemp creates 0600 files; outputs get the usual permissions (0666 less the umask)
         os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
+    except OSError as exc:
+        if exc.filename is not None and os.fspath(exc.filename) == tmp:
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
@@ -62,6 +95,14 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether two paths name one existing file (an output that would replace its own input)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def check_writable_file(path: str | os.PathLike, overwrite: bool) -> Path:
@@ -160,9 +201,27 @@ def write_geotiff(path: str | os.PathLike, array: np.ndarray, transform, crs=Non
     if a.shape[1] >= 256 and a.shape[2] >= 256:
         profile.update(tiled=True, blockxsize=256, blockysize=256)
     with atomic_path(path, suffix=".tif") as tmp:
-        with rasterio.open(tmp, "w", **profile) as dst:
-            dst.write(a)
+        try:
+            with rasterio.open(tmp, "w", **profile) as dst:
+                dst.write(a)
+        except rasterio.errors.RasterioError as exc:  # GDAL says "Write failed" and no errno: find out why
+            raise _write_error(Path(path), exc) from None
     return Path(path)
+
+
+def _write_error(path: Path, exc: Exception) -> OSError:
+    """An OSError naming ``path`` for a library's write failure that carries no errno (GDAL, libtiff)."""
+    import errno
+
+    try:
+        st = os.statvfs(path.parent)
+        if st.f_flag & os.ST_RDONLY:
+            return OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        if st.f_bavail * st.f_frsize < 1 << 20:
+            return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    except OSError:
+        pass
+    return OSError(errno.EIO, str(exc).replace(" See previous exception for details.", ""), str(path))
 
 
 # ---- all-or-nothing output folders ---------------------------------------------------------------------
@@ -230,6 +289,57 @@ def is_coastforge_output(path: Path) -> bool:
     return any((path / n).is_file() for n in (MARKER, "scene.json", "library.json", "segmentation.json"))
 
 
+# written into a completed folder later, outside a staged run: `coastforge report` (report.html beside
+# scene.json), `coastforge batch` (an item's .done marker) and `make demo` (its .coastforge-demo mark)
+_LATE_FILES = frozenset({"report.html", ".done", ".coastforge-demo"})
+
+
+def _all_files(folder: Path) -> set[str]:
+    out = set()
+    for root, _dirs, files in os.walk(folder):
+        for f in files:
+            out.add(os.path.relpath(os.path.join(root, f), folder))
+    return out
+
+
+def _listed_files(folder: Path) -> set[str] | None:
+    """The files the run that completed ``folder`` wrote (its marker's list); None when unknown (no marker,
+    or one written before markers listed their files)."""
+    try:
+        files = json.loads((folder / MARKER).read_text(encoding="utf-8")).get("files")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return set(files) if isinstance(files, list) and all(isinstance(f, str) for f in files) else None
+
+
+def foreign_files(folder: Path) -> list[str]:
+    """Files in a folder coastforge completed that no coastforge run wrote there (a user's own files,
+    e.g. the input image copied into the scene folder). Empty when the folder's marker lists no files."""
+    listed = _listed_files(folder)
+    if listed is None:
+        return []
+    return sorted(f for f in _all_files(folder) - listed
+                  if f != MARKER and os.path.basename(f) not in _LATE_FILES and not f.startswith(".nfs"))
+
+
+def _files_written(staging: Path, out: Path, update: bool) -> list[str]:
+    """What the marker of a completed run lists: every file of ``staging`` - except, for an update, the files
+    it only carried over from ``out`` that no run of ours wrote (they stay the user's)."""
+    files = _all_files(staging) - {MARKER}
+    old = None
+    if update and out.is_dir():  # a folder no run of ours made (e.g. export --out into one) lists nothing of it
+        old = _listed_files(out) if is_coastforge_output(out) else set()
+    if old is not None:
+        def carried(f):
+            try:
+                return os.path.samefile(staging / f, out / f)
+            except OSError:
+                return False
+
+        files = {f for f in files if f in old or not carried(f)}
+    return sorted(files)
+
+
 class FolderLock:
     """One writer per output folder: an exclusive, non-blocking flock on a file beside it."""
 
@@ -261,10 +371,13 @@ class FolderLock:
             if same:
                 break
             os.close(fd)
-        info = {"pid": os.getpid(), "command": self.command or "coastforge", "started": time.strftime("%Y-%m-%d %H:%M:%S")}
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, json.dumps(info).encode(), 0)
         self.fd = fd
+        info = {"pid": os.getpid(), "command": self.command or "coastforge", "started": time.strftime("%Y-%m-%d %H:%M:%S")}
+        try:  # who holds it, for the message of a second run; best effort (a full disk takes no bytes)
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps(info).encode(), 0)
+        except OSError:
+            pass
         return self
 
     def release(self) -> None:
@@ -353,7 +466,7 @@ def _swap_in(staging: Path, out: Path) -> None:
 
 @contextlib.contextmanager
 def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bool = False, command: str = "",
-                  notes: list[str] | None = None) -> Iterator[Path]:
+                  notes: list[str] | None = None, inputs=()) -> Iterator[Path]:
     """Write the folder ``out`` all-or-nothing; yields the staging folder to write into.
 
     ``update=False``: the run makes the whole folder. An existing non-empty ``out`` is refused unless
@@ -361,7 +474,8 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
     ``update=True``: the run changes an existing folder (a scene's exports, its terrain): staging starts
     as a hard-linked copy of it. Either way ``out`` changes only when the block completes; a failure or a
     kill leaves it as it was, plus the staging folder, which the next run removes. ``notes`` receives what
-    recovery did."""
+    recovery did. ``inputs``: the run's input files; --overwrite refuses to replace a folder holding one
+    (even one whose marker predates the list of written files)."""
     out = Path(out)
     check_output_parent(out)
     if out.is_symlink():  # a link to a folder: write the folder it names (swapping would replace the link)
@@ -373,6 +487,20 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
         if not is_coastforge_output(out):
             raise OutputExistsError(f"output folder {out} holds files coastforge did not write; --overwrite "
                                     "replaces only a folder an earlier run made: choose another --out")
+        for p in inputs:
+            if p is None or not Path(p).exists():
+                continue
+            where = ("is the output folder" if Path(p).resolve() == out.resolve() else
+                     "is inside the output folder" if out.resolve() in Path(p).resolve().parents else None)
+            if where:
+                raise OutputExistsError(f"{p} {where} {out}, which --overwrite replaces whole; it is an input of "
+                                        "this run: move it out of it first, or choose another --out")
+        foreign = foreign_files(out)
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
+            raise OutputExistsError(f"output folder {out} holds {len(foreign)} file(s) coastforge did not write "
+                                    f"({shown}); --overwrite replaces the whole folder and would delete them: move "
+                                    "them out of it, or choose another --out")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -395,12 +523,16 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
         except BaseException as exc:
             if staging.exists() and not _written_into(staging, out):  # failed before writing: nothing to keep
                 shutil.rmtree(staging, ignore_errors=True)
+                if isinstance(exc, KeyboardInterrupt):  # (an error's own message says enough)
+                    exc.add_note(f"{out} is unchanged")
             elif staging.exists():
                 exc.add_note(f"{out} is unchanged; the partial output is in {staging} (the next run into {out} "
                              "removes it)")
             raise
         atomic_write_text(staging / MARKER, json.dumps({"tool": "coastforge", "command": command,
-                                                        "completed": time.strftime("%Y-%m-%d %H:%M:%S")}) + "\n")
+                                                        "completed": time.strftime("%Y-%m-%d %H:%M:%S"),
+                                                        "files": _files_written(staging, out, update)}) + "\n")
+        check_interrupted()
         _swap_in(staging, out)
     finally:
         lock.release()

@@ -180,6 +180,9 @@ def _open(path: Path):
         raise InputError(f"image {path} does not exist; check the path")
     if path.is_dir():
         raise InputError(f"image {path} is a folder; pass an image file (PNG, JPEG, TIFF or GeoTIFF)")
+    if not path.is_file():  # a named pipe or a device: reading it may never end
+        raise InputError(f"image {path} is not a regular file (a pipe or a device?); pass an image file (PNG, "
+                         "JPEG, TIFF or GeoTIFF), e.g. save the stream to a file first")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NotGeoreferencedWarning)

@@ -157,6 +157,16 @@ def asset_top_view(library, asset_id: str, background: str) -> tuple[np.ndarray,
     return _VIEW_CACHE[key]
 
 
+def _warn_library(exc: Exception) -> None:
+    """Matching goes on without an unreadable view or model, but says so (once per message)."""
+    import warnings
+
+    from .errors import CoastforgeWarning
+
+    warnings.warn(f"{exc}; matching used the embedding and the size only for this asset", CoastforgeWarning,
+                  stacklevel=3)
+
+
 def shape_matcher(library) -> "ShapeMatcher":
     """The library's shape matcher (its templates are cached across calls, e.g. over the tiles of a scene)."""
     sm = getattr(library, "_shape_matcher", None)
@@ -296,7 +306,8 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
             order = [aid for aid, _s in hits] + [a.id for a in pool if a.id not in appearance]
             try:
                 shapes = sm.score(image.rgb, d, gsd_img, order, bg, scales=scales)
-            except LibraryError:  # views or meshes unreadable: the embedding and size still decide
+            except LibraryError as exc:  # views or meshes unreadable: the embedding and size still decide
+                _warn_library(exc)
                 shapes = {}
             if any(a.id not in shapes for a in pool):  # one scale for all candidates, or none
                 shapes = {}
@@ -338,7 +349,8 @@ def match_detections(image: GeoImage, dets: list[Detection], library, config: Ma
                 try:
                     view, view_gsd = mean_view(library, chosen.asset_id, bg)
                     grey = heading_evidence(crops[row], gsds[row], view, view_gsd, L, W)
-                except LibraryError:  # views unreadable: the fit and the detector decide
+                except LibraryError as exc:  # views unreadable: the fit and the detector decide
+                    _warn_library(exc)
                     grey = 0.0
                 lib_ev += config.heading_appearance_weight * _pixel_scaling(config, d) * grey
             flipped = lib_ev + hp < 0  # as in the candidates' scores when the grey cue is off

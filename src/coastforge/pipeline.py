@@ -266,8 +266,13 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
         t0 = time.perf_counter()
         image = read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config)
         t_read = time.perf_counter() - t0
+    check_dems(req, image)
+    from .terrain.dem import DemSource
+
     notes: list[str] = []
-    with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes) as stage:
+    inputs = (req.image, req.library, *(DemSource.parse(d).path for d in req.dems))
+    with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes,
+                       inputs=inputs) as stage:
         sreq = replace(req, out=str(stage), overwrite=False)
         if tiled:  # large orthophotos run by windows in bounded memory
             res = tiling.generate_tiled(sreq, config, progress)
@@ -282,6 +287,32 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
                 if side is not None:
                     side.close()
     return _relocated(res, stage, Path(req.out), notes)
+
+
+def check_dems(req: GenerateRequest, image) -> None:
+    """Refuse, before any work, a --dem that does not exist or cannot be placed: generate fuses DEMs by the
+    image's georeference, which a plain PNG/JPEG does not have."""
+    if not req.dems:
+        return
+    from .errors import InputError
+    from .terrain.dem import DemSource
+
+    for spec in req.dems:
+        dem = DemSource.parse(spec)
+        if not dem.path.is_file():
+            raise InputError(f"--dem {dem.path} {'is a folder' if dem.path.is_dir() else 'does not exist'}; "
+                             "pass a DEM / bathymetry GeoTIFF")
+    if image is not None:
+        georef = image.grid.crs is not None and image.grid.transform is not None
+    else:  # a tiled run reads the image later: its header says
+        import rasterio
+
+        with rasterio.open(req.image) as src:
+            georef = src.crs is not None
+    if not georef:
+        raise InputError(f"--dem needs to know where the scene is on the map, but {req.image} has no georeference; "
+                         "give generate a GeoTIFF, or generate without --dem and fuse the DEM afterwards with "
+                         "`coastforge terrain OUT --overwrite --dem FILE --dem-crs CRS --dem-origin X Y`")
 
 
 def check_library_path(path: str | None) -> None:

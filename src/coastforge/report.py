@@ -1061,6 +1061,13 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
                          "or a scene.json")
     out_path = Path(out) if out else scene_dir / "report.html"
     default_out = (scene_dir / "report.html").resolve()
+    from .fsio import same_file
+
+    if out_path.suffix.lower() not in (".html", ".htm"):
+        raise InputError(f"--out {out_path} must end in .html (the report is one HTML page)")
+    for what, p in (("the scene file", scene_path), ("the truth scene", truth)):
+        if p is not None and same_file(out_path, p):
+            raise InputError(f"--out {out_path} is {what}; write the report to another file (e.g. report.html)")
     if out and out_path.exists() and not overwrite and out_path.resolve() != default_out:
         raise OutputExistsError(f"{out_path} exists; pass --overwrite to replace it, or choose another --out")
     say("loading the scene")

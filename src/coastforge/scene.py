@@ -227,16 +227,18 @@ def scene_from_dict(d: Any, where: str = "scene.json") -> Scene:
     gsd = _num(d, "gsd_m", where, positive=True)
     ext = d.get("extent_m")
     if (not isinstance(ext, list) or len(ext) != 2
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in ext)):
-        _fail(where, f"extent_m = {ext!r} must be [width, height] in metres, both > 0")
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                       for v in ext)):
+        _fail(where, f"extent_m = {ext!r} must be [width, height] in metres, both finite and > 0")
     wl = _num(d, "water_level_m", where)
     crs = d.get("crs")
     if crs is not None and not isinstance(crs, str):
         _fail(where, f"crs = {crs!r} must be a string or null")
     tr = d.get("transform")
     if tr is not None and (not isinstance(tr, list) or len(tr) != 6
-                           or not all(isinstance(v, (int, float)) for v in tr)):
-        _fail(where, f"transform = {tr!r} must be 6 numbers [a, b, c, d, e, f] or null")
+                           or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                                      for v in tr)):
+        _fail(where, f"transform = {tr!r} must be 6 finite numbers [a, b, c, d, e, f] or null")
     terrain = d.get("terrain")
     if not isinstance(terrain, dict) or not isinstance(terrain.get("height"), str) \
             or not isinstance(terrain.get("classes"), str):
@@ -269,7 +271,7 @@ def scene_from_dict(d: Any, where: str = "scene.json") -> Scene:
         for i, r in enumerate(veg):
             if not isinstance(r, dict) or any(k not in r for k in VEG_COLUMNS):
                 _fail(where, f"vegetation[{i}] = {r!r} needs the fields {', '.join(VEG_COLUMNS)}")
-        vegetation = Vegetation.from_rows(veg)
+        vegetation = vegetation_from_rows(veg, where, lambda i: f"vegetation[{i}]")
     else:
         _fail(where, f"vegetation = {veg!r} must be a CSV path or a list of instances")
     prov = d.get("provenance", {})
@@ -315,9 +317,10 @@ def _resolve(folder: Path, rel: str, what: str) -> Path:
     return p
 
 
-def load_scene(path: str | Path, rasters: bool = True) -> Scene:
+def load_scene(path: str | Path, rasters: bool = True, height: bool = True) -> Scene:
     """Load ``scene.json`` (or a folder holding one, or the ``truth.json`` that ``coastforge synth``
-    writes) with its rasters and vegetation table."""
+    writes) with its rasters and vegetation table. ``height=False`` leaves the height raster unread (a run
+    that replaces it, e.g. ``coastforge terrain --overwrite``, must not stop on a damaged one)."""
     path = Path(path)
     if path.is_dir():
         folder = path
@@ -333,13 +336,13 @@ def load_scene(path: str | Path, rasters: bool = True) -> Scene:
         raise SceneFormatError(f"{path} is not valid JSON: {exc}") from exc
     scene = scene_from_dict(d, where=str(path))
     folder = path.parent
-    height = classes = None
+    z = classes = None
     if rasters:
         hp = _resolve(folder, scene.terrain_paths["height"], "terrain.height")
         cp = _resolve(folder, scene.terrain_paths["classes"], "terrain.classes")
-        if hp.exists():
-            height = read_height(hp)
-            _check_raster_grid(scene, hp, height.shape)
+        if height and hp.exists():
+            z = read_height(hp)
+            _check_raster_grid(scene, hp, z.shape)
         if cp.exists():
             from .io import image_damage
 
@@ -353,8 +356,8 @@ def load_scene(path: str | Path, rasters: bool = True) -> Scene:
             if classes.max(initial=0) >= N_CLASSES:
                 raise SceneFormatError(f"{cp}: class id {int(classes.max())} is not one of 0..{N_CLASSES - 1}")
             _check_raster_grid(scene, cp, classes.shape)
-        if height is not None and classes is not None and height.shape != classes.shape:
-            raise SceneFormatError(f"{hp} is {height.shape} but {cp} is {classes.shape}; they must share a grid")
+        if z is not None and classes is not None and z.shape != classes.shape:
+            raise SceneFormatError(f"{hp} is {z.shape} but {cp} is {classes.shape}; they must share a grid")
     veg = scene.vegetation
     if scene.vegetation_ref is not None:
         vp = _resolve(folder, scene.vegetation_ref, "vegetation")
@@ -367,7 +370,7 @@ def load_scene(path: str | Path, rasters: bool = True) -> Scene:
             i = int(np.argmax(bad))
             _check_inside(str(path), f"vegetation instance {i} ({veg.asset_id[i]})", float(x[i]), float(y[i]),
                           scene.extent_m)
-    return replace(scene, height=height, classes=classes, vegetation=veg)
+    return replace(scene, height=z, classes=classes, vegetation=veg)
 
 
 def _check_raster_grid(scene: Scene, path: Path, shape: tuple[int, ...]) -> None:
@@ -387,25 +390,63 @@ def _check_raster_grid(scene: Scene, path: Path, shape: tuple[int, ...]) -> None
                                "belongs to another scene or was resized: restore it, or re-run coastforge generate")
 
 
+_REWRITE_HEIGHT = "re-run coastforge terrain SCENE --overwrite (or coastforge generate) to write it again"
+
+
 def read_height(path: Path) -> np.ndarray:
+    """The height raster: a single-band GeoTIFF of finite metres (what coastforge writes)."""
+    import warnings
+
     import rasterio
 
     from .io import gdal_reason
 
     try:
-        with rasterio.open(path) as src:
-            return src.read(1).astype(np.float32)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(path) as src:
+                if src.driver != "GTiff" or src.count != 1:
+                    raise SceneFormatError(
+                        f"{path} is a {src.count}-band {src.driver} {src.dtypes[0]} raster, not a height map: "
+                        f"terrain heights are a single-band GeoTIFF of metres; {_REWRITE_HEIGHT}")
+                z = src.read(1).astype(np.float32)
     except rasterio.errors.RasterioIOError as exc:
-        raise SceneFormatError(f"{path.name} is truncated or corrupt ({path}: {gdal_reason(exc)}); re-run "
-                               "coastforge generate (or coastforge terrain) to write it again") from exc
+        raise SceneFormatError(f"{path.name} is truncated or corrupt ({path}: {gdal_reason(exc)}); "
+                               f"{_REWRITE_HEIGHT}") from exc
+    bad = ~np.isfinite(z)
+    if bad.any():
+        raise SceneFormatError(f"{path} holds {int(bad.sum())} of {bad.size} cells that are NaN or infinite; "
+                               f"heights must be finite metres: {_REWRITE_HEIGHT}")
+    return z
+
+
+def vegetation_from_rows(rows: list[dict], where: str, row_name) -> Vegetation:
+    """Vegetation from table rows, each number checked: finite, and a positive scale (exporters place every
+    instance; a NaN height or a negative scale would be written as is)."""
+    for i, r in enumerate(rows):
+        for k in VEG_COLUMNS[2:]:
+            v = r.get(k)
+            try:
+                f = float(v)
+            except (TypeError, ValueError):
+                f = None
+            if f is None or isinstance(v, bool) or not math.isfinite(f) or (k == "scale" and f <= 0):
+                need = "a positive number" if k == "scale" else "a finite number"
+                _fail(where, f"{row_name(i)}: {k} = {v!r} must be {need}; fix or remove that row")
+    return Vegetation.from_rows(rows)
 
 
 def read_vegetation_csv(path: Path) -> Vegetation:
-    with open(path, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        if reader.fieldnames is None or list(reader.fieldnames) != list(VEG_COLUMNS):
-            raise SceneFormatError(f"{path}: header must be {','.join(VEG_COLUMNS)}, got {reader.fieldnames}")
-        return Vegetation.from_rows(list(reader))
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.DictReader(fh)
+            if reader.fieldnames is None or list(reader.fieldnames) != list(VEG_COLUMNS):
+                raise SceneFormatError(f"{path}: header must be {','.join(VEG_COLUMNS)}, got {reader.fieldnames}")
+            rows = list(reader)
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise SceneFormatError(f"{path} is not a CSV text table ({exc}); it must hold the columns "
+                               f"{','.join(VEG_COLUMNS)}: restore it, or re-run coastforge generate") from None
+    return vegetation_from_rows(rows, str(path), lambda i: f"line {i + 2}")
 
 
 def vegetation_csv(v: Vegetation) -> str:

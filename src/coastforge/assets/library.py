@@ -226,6 +226,9 @@ def read_manifest(path: str | Path, lenient: bool = False) -> tuple[list[AssetSp
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise LibraryError(f"manifest {path} is not a text file (a model or an image?); give a JSON or TOML "
+                           "manifest with an 'assets' list, or the folder of models") from None
     except OSError as exc:
         raise LibraryError(f"cannot read manifest {path}: {exc}") from exc
     try:
@@ -627,8 +630,21 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
         return result
     except CoastforgeError as exc:
         return {"error": str(exc)}
+    except OSError as exc:
+        return _os_failure(spec, exc)
     except Exception as exc:  # a broken model must not take the other assets down
         return {"error": f"asset {spec.id!r}: {type(exc).__name__}: {exc}"}
+
+
+_OUTPUT_ERRNOS = (28, 122, 30)  # ENOSPC, EDQUOT, EROFS: the library folder, not the asset, is the problem
+
+
+def _os_failure(spec, exc: OSError) -> dict:
+    """An asset job's OS error: a full or read-only disk stops the build (every asset would fail the same
+    way, and "no asset could be built" would hide why); others only skip the asset."""
+    if exc.errno in _OUTPUT_ERRNOS:
+        return {"oserror": (exc.errno, exc.strerror, None if exc.filename is None else str(exc.filename))}
+    return {"error": f"asset {spec.id!r}: {type(exc).__name__}: {exc}"}
 
 
 def _embed_views(emb, images: list, gsd: float, length_m: float, config: LibraryConfig,
@@ -687,9 +703,11 @@ class Library:
 
     # -- loading
     @classmethod
-    def load(cls, path: str | Path, embedder: str | None = None, weights: str | Path | None = None) -> "Library":
+    def load(cls, path: str | Path, embedder: str | None = None, weights: str | Path | None = None,
+             check_files: bool = True) -> "Library":
         """Open a library folder (or its library.json). ``embedder`` (a name) must match the one it was built
-        with; ``weights`` overrides the recorded weights folder of a weights-based embedder."""
+        with; ``weights`` overrides the recorded weights folder of a weights-based embedder. ``check_files``:
+        refuse a library missing a file it lists (a view, a silhouette, a model copy)."""
         root = Path(path)
         if root.is_file() and root.name == LIBRARY_JSON:
             root = root.parent
@@ -725,6 +743,13 @@ class Library:
                 f"--embedder {emb['name']} or rebuild it with --embedder {embedder}"
             )
         index = VectorIndex.load(root / idx_info["file"], row_asset, int(emb["dim"]), idx_info.get("sha256"))
+        if check_files:
+            missing = [(a["id"], f) for a in doc["assets"] for f in _record_files(a) if not (root / f).is_file()]
+            if missing:
+                shown = ", ".join(f"{f} (asset {aid!r})" for aid, f in missing[:3])
+                raise LibraryError(f"library {root} is incomplete: {len(missing)} file(s) it lists are missing, "
+                                   f"e.g. {shown}; rebuild it (coastforge library build SRC --out {root}: only "
+                                   "the damaged assets are rendered again)")
         return cls(root, doc, tuple(assets), index, str(weights) if weights is not None else emb.get("weights"))
 
     # -- assets
@@ -754,7 +779,12 @@ class Library:
                 box.visual.face_colors = np.array([150, 150, 150, 255], np.uint8)
                 self._meshes[asset_id] = box
             else:
-                m = load_mesh(a.mesh_path, asset_id)
+                try:
+                    m = load_mesh(a.mesh_path, asset_id)
+                except LibraryError as exc:  # the library's own copy: the user did not write that file
+                    raise LibraryError(f"asset {asset_id!r}: the library's copy of its model, {a.mesh_path}, is "
+                                       f"missing or unreadable ({exc}); rebuild the library (coastforge library "
+                                       f"build SRC --out {self.root})") from None
                 if a.mesh_up == "y":  # stored in glTF's y-up convention: back to the scene frame
                     m.apply_transform(np.linalg.inv(Z_UP_TO_GLTF))
                 self._meshes[asset_id] = m
@@ -928,6 +958,31 @@ class Library:
         return self.search(self.embed([image], [gsd_m]), k, category, prior)[0]
 
 
+def _record_files(a: dict) -> list[str]:
+    """The files (relative to the library) one asset record of library.json lists."""
+    files = [v["file"] for v in a.get("views", []) + a.get("paint_views", [])]
+    files += [a[k] for k in ("silhouette", "mesh", "query_views_file") if a.get(k)]
+    return files
+
+
+def _intact(path: Path) -> bool:
+    """A stored view or model copy that is complete: a PNG whose chunks pass their CRCs, a GLB as long as its
+    header says. (An interrupted copy or a damaged disk leaves files that exist but cannot be read.)"""
+    from ..io import image_damage
+
+    if path.suffix.lower() == ".png":
+        return image_damage(path) is None
+    if path.suffix.lower() == ".glb":
+        try:
+            with open(path, "rb") as fh:
+                head = fh.read(12)
+            return len(head) == 12 and head[:4] == b"glTF" and int.from_bytes(head[8:12], "little") == \
+                path.stat().st_size
+        except OSError:
+            return False
+    return path.is_file()
+
+
 def _record_from_json(root: Path, a: dict) -> AssetRecord:
     views = tuple(root / v["file"] for v in a["views"])
     conds = tuple(f"l{int(v['lighting'])}_{v['background']}" for v in a["views"])
@@ -947,13 +1002,13 @@ def _record_from_json(root: Path, a: dict) -> AssetRecord:
 # building
 
 
-def _previous(out: Path) -> tuple[dict | None, VectorIndex | None]:
-    """The library already in ``out`` (for incremental rebuilds), or (None, None) if absent/unusable."""
+def _previous(out: Path) -> tuple[dict | None, VectorIndex | None, str]:
+    """The library already in ``out`` (for incremental rebuilds), or (None, None, why) if absent/unusable."""
     try:
-        lib = Library.load(out)
-    except LibraryError:
-        return None, None
-    return lib.doc, lib.index
+        lib = Library.load(out, check_files=False)  # a missing view is rendered again, not a reason to stop
+    except LibraryError as exc:
+        return None, None, str(exc)
+    return lib.doc, lib.index, ""
 
 
 def _config_dict(config: LibraryConfig) -> dict:
@@ -963,13 +1018,16 @@ def _config_dict(config: LibraryConfig) -> dict:
 def build_library(src: str | Path | None, out: str | Path, embedder: str = "default", weights: str | Path | None = None,
                   strict: bool = False, config: LibraryConfig = LibraryConfig(), *, from_thumbnails: str | Path | None
                   = None, overwrite: bool = False, workers: int | None = None,
-                  progress: Callable[[str], None] | None = None, keep_origin: bool = False) -> Library:
+                  progress: Callable[[str], None] | None = None, keep_origin: bool = False,
+                  shown_as: str | Path | None = None) -> Library:
     """Build (or incrementally rebuild) a library in ``out`` from a models folder, a manifest, or (with
     ``from_thumbnails``) a folder captured by the Unreal script. Returns the loaded library with
-    ``build_report`` set. One bad asset is reported and skipped unless ``strict``."""
+    ``build_report`` set. One bad asset is reported and skipped unless ``strict``. ``shown_as``: the folder
+    messages name (``out`` is a staging copy of it)."""
     t0 = time.perf_counter()
     say = progress or (lambda _m: None)
     out = Path(out)
+    shown = Path(shown_as) if shown_as is not None else out
     if from_thumbnails is not None:
         specs, skipped = read_thumbnails(Path(from_thumbnails))
     else:
@@ -996,13 +1054,17 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
     view_conditions(config)
     # output folder
     if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
+        raise InputError(f"--out {shown} exists and is not a folder")
     prev_doc, prev_index = (None, None)
     if out.is_dir() and any(out.iterdir()):
-        prev_doc, prev_index = _previous(out)
+        prev_doc, prev_index, why = _previous(out)
         if prev_doc is None and not overwrite:
-            raise OutputExistsError(f"{out} is not empty and holds no valid library; pass --overwrite or choose "
-                                    "another --out")
+            if (out / LIBRARY_JSON).is_file():
+                raise OutputExistsError(f"{shown} holds a library that cannot be read ("
+                                        f"{why.replace(str(out), str(shown))}); pass --overwrite to build it "
+                                        "again from scratch, or choose another --out")
+            raise OutputExistsError(f"{shown} is not empty and holds no valid library; pass --overwrite or "
+                                    "choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     vset = view_settings(config)
     emb_info = {"name": emb.name, "settings": emb.settings, "dim": int(emb.dim),
@@ -1011,7 +1073,7 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
     prev_assets = {a["id"]: a for a in (prev_doc or {}).get("assets", [])}
     dropped = sorted(set(prev_assets) - {s.id for s in specs})
     if dropped and not overwrite:  # an update may add and refresh assets; removing some needs --overwrite
-        raise OutputExistsError(f"{out} holds {len(dropped)} asset(s) that SRC no longer has "
+        raise OutputExistsError(f"{shown} holds {len(dropped)} asset(s) that SRC no longer has "
                                 f"({', '.join(dropped[:5])}{', ...' if len(dropped) > 5 else ''}); pass "
                                 "--overwrite to remove them from the library, or choose another --out")
     prev_vectors = prev_index.vectors() if prev_index is not None else None
@@ -1028,10 +1090,7 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
             continue
         old = prev_assets.get(s.id)
         if old is not None and old.get("hashes", {}).get("content") == content and all(
-                (out / v["file"]).is_file() for v in old["views"] + old.get("paint_views", [])) and (
-                not old.get("query_views_file") or (out / old["query_views_file"]).is_file()) and (
-                not old.get("silhouette") or (out / old["silhouette"]).is_file()) and (
-                not old.get("mesh") or (out / old["mesh"]).is_file()):
+                _intact(out / f) for f in _record_files(old)):  # a missing or damaged file: render it again
             rec = {k: v for k, v in old.items() if k not in ("index_rows", "hashes")}
             records[s.id] = rec
             reused.append(s.id)
@@ -1048,6 +1107,9 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
     cfg = _config_dict(config)
     results = _run_jobs([(s, str(out), cfg, {"name": emb.name} if in_worker else None) for s, _c in todo],
                         workers, say)
+    for res in results:
+        if "oserror" in res:
+            raise OSError(*res["oserror"])
     for (s, content), res in zip(todo, results):
         if "error" in res:
             skipped.append(SkippedAsset(s.id, res["error"]))
@@ -1079,7 +1141,7 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
     lib.build_report = BuildReport(tuple(rendered), tuple(reused), tuple(embedded), tuple(skipped), notes,
                                    time.perf_counter() - t0, lib.index.rows)
     lib._embedder = emb
-    say(f"library {out}: {len(records)} assets ({len(rendered)} rendered, {len(reused)} reused), "
+    say(f"library {shown}: {len(records)} assets ({len(rendered)} rendered, {len(reused)} reused), "
         f"{len(skipped)} skipped, {lib.index.rows} index rows")
     return lib
 
@@ -1270,6 +1332,8 @@ def _ingest_thumb(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | Non
         return result
     except CoastforgeError as exc:
         return {"error": str(exc)}
+    except OSError as exc:
+        return _os_failure(spec, exc)
     except Exception as exc:
         return {"error": f"asset {spec.id!r}: {type(exc).__name__}: {exc}"}
 
@@ -1350,11 +1414,28 @@ def query_image(lib_path: str | Path | None, image_path: str | Path, gsd_m: floa
                 category: str | None = None, embedder: str | None = None, weights: str | Path | None = None
                 ) -> list[dict]:
     """``coastforge library query``: the ``k`` nearest assets of one image file, best first."""
+    from ..config import IOConfig
+    from ..io import image_damage
+
     if not (isinstance(gsd_m, (int, float)) and gsd_m > 0 and math.isfinite(gsd_m)):
         raise InputError(f"--gsd {gsd_m!r} must be a positive number of metres per pixel")
+    io_cfg = IOConfig()
+    if not io_cfg.min_gsd_m <= gsd_m <= io_cfg.max_gsd_m:
+        raise InputError(f"--gsd {gsd_m:g} m/px is outside the {io_cfg.min_gsd_m:g}-{io_cfg.max_gsd_m:g} m/px "
+                         "coastforge works with; --gsd is metres per pixel of the crop (e.g. 0.1)")
     if k < 1:
         raise InputError(f"--k {k} must be at least 1")
+    image_path = Path(image_path)
+    if not image_path.is_file():
+        raise InputError(f"image {image_path} is not a file; pass a PNG or JPEG crop of one object")
+    why = image_damage(image_path)
+    if why:
+        raise InputError(f"{image_path} is truncated or corrupt: {why}; re-export or re-download it")
     lib = Library.load(lib_path, embedder=embedder, weights=weights) if lib_path is not None else default_library()
+    if category is not None and category in ASSET_CATEGORIES and not any(a.category == category for a in lib.assets):
+        have = sorted({a.category for a in lib.assets})
+        raise InputError(f"library {lib.root} has no {category!r} asset (it has {', '.join(have)}); query "
+                         "another --category, or add such assets with coastforge library build")
     img = read_png(image_path)
     if img.dtype != np.uint8:
         img = (img / 257).astype(np.uint8)

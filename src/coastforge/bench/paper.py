@@ -24,6 +24,20 @@ COLUMNS = ("n_truth", "gsd_m", "xy_rmse_m", "rotation_rmse_deg", "orientation_rm
            "match_precision_category", "recall", "detection_precision", "miou", "piers_connected", "generate_s")
 
 
+def check_benchmark(presets=None, gsds=(0.1, 0.2), library: str | None = None) -> tuple[list[str], tuple]:
+    """The benchmark's levels and GSDs, checked before anything runs or is written (a bad level name or
+    library would otherwise stop it after the first levels)."""
+    from ..synth import PRESETS, _open_library, check_preset, parse_gsds
+
+    presets = list(presets or PRESETS)
+    for p in presets:
+        check_preset(p)
+    gsds = parse_gsds(gsds)
+    if library is not None:
+        _open_library(library)
+    return presets, gsds
+
+
 def run_benchmark(out: str | Path, presets=None, seed: int = 0, gsds=(0.1, 0.2), library: str | None = None,
                   config=None, overwrite: bool = False, log=print) -> dict:
     from ..config import Config
@@ -31,11 +45,11 @@ def run_benchmark(out: str | Path, presets=None, seed: int = 0, gsds=(0.1, 0.2),
     from ..fsio import atomic_write_text, prepare_output_dir
     from ..pipeline import GenerateRequest, run_generate
     from ..scene import load_scene
-    from ..synth import PRESETS, synth_to_dir
+    from ..synth import synth_to_dir
 
     config = config or Config()
+    presets, gsds = check_benchmark(presets, gsds, library)
     out = prepare_output_dir(out, overwrite)
-    presets = list(presets or PRESETS)
     rows = []
     for p in presets:
         sdir = out / p / "truth"

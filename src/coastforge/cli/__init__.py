@@ -125,5 +125,23 @@ def cli() -> None:
     """
 
 
+def _on_sigint(signum, frame) -> None:
+    """Ctrl-C: raise KeyboardInterrupt as Python does, and remember it, so a library that swallows it (trimesh
+    catches BaseException around its imports) cannot let the run go on to write its output."""
+    from ..fsio import note_interrupt
+
+    note_interrupt()
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> None:
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread() and \
+            signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_sigint)
+    # GDAL's default handler prints raw lines such as "ERROR 1: PROJ: ... crs not found" before our message;
+    # rasterio turns the errors that matter into exceptions, whose reason our messages quote
+    os.environ.setdefault("CPL_LOG", os.devnull)
     cli.main(args=argv if argv is not None else sys.argv[1:], prog_name="coastforge")

@@ -19,6 +19,7 @@ from .options import pass_config
 def batch(batch_list, out, scheduler, workers, library, exports, config):
     """Generate every image of BATCH_LIST (JSON items or 'IMAGE [GSD]' lines). Re-running skips finished items."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import Progress
 
     from ..batch import read_batch_list, run_batch
@@ -32,10 +33,11 @@ def batch(batch_list, out, scheduler, workers, library, exports, config):
         def progress(r, n, total):
             bar.update(task, completed=n)
             if r.status == "failed":
-                console.print(f"[red]failed[/red] {r.name}: {r.error.splitlines()[0] if r.error else ''}")
+                first = r.error.splitlines()[0] if r.error else ""
+                console.print(f"[red]failed[/red] {escape(r.name)}: {escape(first)}")
 
         rep = run_batch(items, out, config, library, fmts, scheduler, workers, progress)
     console.print(f"{rep['done']} done, {rep['skipped']} skipped, {rep['failed']} failed in {rep['wall_s']:.1f} s; "
-                  f"report: {out}/batch_report.json")
+                  f"report: {escape(str(out))}/batch_report.json")
     if rep["failed"]:
         raise SystemExit(1)

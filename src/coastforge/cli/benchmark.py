@@ -19,14 +19,18 @@ from .options import overwrite_option, pass_config
 @pass_config
 def benchmark(out, presets, gsds, library, as_json, overwrite, config):
     """Synthesize the benchmark levels at both resolutions, run generate, evaluate, print the table."""
-    from ..bench.paper import run_benchmark, to_markdown
+    from ..bench.paper import check_benchmark, run_benchmark, to_markdown
     from ..errors import InputError
+    from .options import staged
 
     try:
         g = tuple(float(v) for v in gsds.split(","))
     except ValueError as exc:
         raise InputError(f"--gsd {gsds!r} must be comma-separated metres per pixel, e.g. 0.1,0.2") from exc
     names = [p.strip() for p in presets.split(",") if p.strip()] or None
-    res = run_benchmark(out, names, config.seed, g, library, config, overwrite,
-                        log=lambda s: click.echo(s, err=True))
+    names, g = check_benchmark(names, g, library)  # every check before the first write
+    # all-or-nothing like every output folder: a stopped benchmark leaves --out as it was
+    with staged(out, overwrite=overwrite, inputs=(library,)) as stage:
+        res = run_benchmark(stage, names, config.seed, g, library, config, True,
+                            log=lambda s: click.echo(s, err=True))
     click.echo(json.dumps(res, indent=2) if as_json else to_markdown(res))

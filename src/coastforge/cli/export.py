@@ -28,8 +28,12 @@ def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
         library = Library.load(library_dir)
     from pathlib import Path
 
+    from ..export import require_rasters
+    from ..scene import load_scene
+
     fmts = parse_formats(formats or config.export.formats)  # checked before anything is written
     src = Path(scene_dir)
+    require_rasters(load_scene(src))  # so is the scene, with its real paths in the messages
     target = Path(out_dir) if out_dir is not None else (src.parent if src.is_file() else src)
     if not overwrite:  # before any work: an existing export is replaced only on request
         from ..errors import OutputExistsError

@@ -53,13 +53,13 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
     for n in result.notes:
         console.print(f"note     {escape(n)}")
     counts = ", ".join(f"{v} {k}" for k, v in result.n_objects.items())
-    console.print(f"[bold]scene[/bold]  {result.scene_path}  ({counts})")
+    console.print(f"[bold]scene[/bold]  {escape(str(result.scene_path))}  ({counts})")
     console.print("timings  " + ", ".join(f"{k} {v:.2f}s" for k, v in result.timings_s.items()))
     from ..export import export_summary
 
     for line in export_summary(result.exports):  # plain paths, not lists of PosixPath reprs
         console.print(f"export   {escape(line)}")
     if result.report_path:
-        console.print(f"[bold]report[/bold] {result.report_path}")
+        console.print(f"[bold]report[/bold] {escape(str(result.report_path))}")
     for w in result.warnings:  # the self-check: the scene looks implausible (also in the report)
         console.print(f"[bold yellow]warning[/bold yellow] {escape(w.message)} [dim]{escape(w.hint)}[/dim]")

@@ -33,12 +33,15 @@ def build(src, out, embedder, weights, strict, thumbs, workers, as_json, overwri
     from ..assets.library import build_library
 
     from ..assets.library import Library
+    from ..errors import InputError
 
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers {workers} must be at least 1 (render processes; leave it out for one per core)")
     say = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
     with staged(out, update=True) as stage:  # all-or-nothing: the library changes only once the build is done
         built = build_library(src, stage, embedder=embedder or config.library.embedder, weights=weights,
                               strict=strict, config=config.library, from_thumbnails=thumbs, overwrite=overwrite,
-                              workers=workers, progress=say)
+                              workers=workers, progress=say, shown_as=out)
     r = built.build_report
     lib = Library.load(out, weights=weights)
     if as_json:
@@ -53,7 +56,7 @@ def build(src, out, embedder, weights, strict, thumbs, workers, as_json, overwri
     from rich.markup import escape
     from rich.table import Table
 
-    t = Table(title=f"asset library {lib.root}")
+    t = Table(title=f"asset library {escape(str(lib.root))}")
     for col in ("id", "category", "L x W x H (m)", "view m/px", "status", "guesses"):
         t.add_column(col)
     for a in lib.assets:
@@ -64,7 +67,7 @@ def build(src, out, embedder, weights, strict, thumbs, workers, as_json, overwri
     con.print(t)
     for s in r.skipped:
         con.print(f"[yellow]skipped[/yellow] {escape(s.id)}: {escape(s.error)}")
-    con.print(f"{len(lib.assets)} assets, {r.rows} index rows, embedder {lib.embedder_name}, "
+    con.print(f"{len(lib.assets)} assets, {r.rows} index rows, embedder {escape(lib.embedder_name)}, "
               f"{len(r.rendered)} rendered, {len(r.reused)} reused, {len(r.skipped)} skipped, {r.seconds:.1f} s")
 
 

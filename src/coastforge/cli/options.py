@@ -49,7 +49,7 @@ def pass_config(f):
     return wrapper
 
 
-def staged(out, *, overwrite: bool = False, update: bool = False):
+def staged(out, *, overwrite: bool = False, update: bool = False, inputs=()):
     """``fsio.output_folder`` for a command: all-or-nothing writes into ``out``, one writer at a time; what
     recovery did (an earlier run's leftovers) is printed."""
     import contextlib
@@ -61,7 +61,7 @@ def staged(out, *, overwrite: bool = False, update: bool = False):
     @contextlib.contextmanager
     def run():
         notes: list[str] = []
-        with output_folder(out, overwrite=overwrite, update=update, notes=notes,
+        with output_folder(out, overwrite=overwrite, update=update, notes=notes, inputs=inputs,
                            command=shlex.join(["coastforge", *sys.argv[1:]])) as stage:
             for n in notes:
                 click.echo(f"note: {n}", err=True)

@@ -32,7 +32,7 @@ def segment(image, gsd, size_m, out_dir, backend, labels, mapping, weights, over
         options = {"weights": weights, "mapping": mapping}
     elif labels or weights:
         raise click.UsageError("--labels goes with --backend labels, --weights with --backend onnx")
-    with staged(out_dir, overwrite=overwrite) as stage:  # all-or-nothing: out_dir changes only when complete
+    with staged(out_dir, overwrite=overwrite, inputs=(image, labels, mapping, weights)) as stage:  # all-or-nothing
         res = segment_file(image, stage, gsd_m=gsd, size_m=tuple(size_m) if size_m else None, config=config,
                            backend=name, overwrite=True, **options)
     fr = res["class_fractions"]

@@ -9,7 +9,7 @@ import click
 @click.option("--preset", required=True, metavar="NAME",
               help="Level: simple_pier_a, simple_pier_b, pier_parking, marina, lake_harbor, beach, "
                    "rocky_shore, or 'all' (one subfolder per level).")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
               help="Root seed (layout, terrain, lighting, clutter).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--gsd", "gsd", default="0.1,0.2", show_default=True, metavar="M[,M...]",
@@ -29,7 +29,7 @@ def synth(preset: str, seed: int, out_dir: str, gsd: str, library: str | None, o
     from ..synth import synth_many
     from .options import staged
 
-    with staged(out_dir, overwrite=overwrite) as stage:  # all-or-nothing: every level, or none
+    with staged(out_dir, overwrite=overwrite, inputs=(library,)) as stage:  # all-or-nothing: every level, or none
         results = synth_many(preset, seed, stage, gsd, library, overwrite=True)
 
     def final(p) -> Path:  # a path in the staging folder -> where it is now

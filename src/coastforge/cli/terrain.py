@@ -27,25 +27,39 @@ def terrain(scene_dir, dems, dem_crs, dem_origin, image_path, backend, weights, 
     """Estimate the height map of SCENE_DIR (its scene.json and class raster) and write it into the scene,
     with a hillshade, a shore-type map and shore cross-sections under SCENE_DIR/terrain/."""
     import dataclasses
+    import math
+    from pathlib import Path
 
     from ..errors import InputError
-    from ..terrain import terrain_scene
-    from ..terrain.dem import Placement
+    from ..terrain import load_terrain_scene, terrain_scene
+    from ..terrain.dem import DemSource, Placement
 
     if (dem_crs is None) != (dem_origin is None):
         raise InputError("--dem-crs and --dem-origin go together: give both (CRS and top-left X Y) "
                          "or neither")
+    if dem_origin is not None and not all(math.isfinite(v) for v in dem_origin):
+        raise InputError(f"--dem-origin {dem_origin[0]:g} {dem_origin[1]:g} must be two finite map coordinates "
+                         "(X Y of the image's top-left corner in --dem-crs)")
     placement = Placement(dem_crs, dem_origin[0], dem_origin[1]) if dem_crs else None
     if backend:
         config = dataclasses.replace(config, terrain=dataclasses.replace(config.terrain, backend=backend))
     opts = {"weights": weights} if weights else {}
-    from pathlib import Path
-
+    # every check before anything is written, with the scene's real paths in the messages
+    for spec in dems:
+        dem = DemSource.parse(spec)
+        if not dem.path.is_file():
+            raise InputError(f"--dem {dem.path} {'is a folder' if dem.path.is_dir() else 'does not exist'}; "
+                             "pass a DEM / bathymetry GeoTIFF")
     src = Path(scene_dir)
-    folder = src.parent if src.is_file() else src
+    folder, scene = load_terrain_scene(src, overwrite)
+    image = None
+    if image_path is not None:
+        from ..io import read_image
+
+        image = read_image(image_path, size_m=tuple(scene.extent_m), config=config.io)
     with staged(folder, update=True) as stage:  # the scene changes only once the new terrain is complete
-        res = terrain_scene(stage / src.name if src.is_file() else stage, config, dems=dems, placement=placement,
-                            image_path=image_path, backend_opts=opts, overwrite=overwrite)
+        res = terrain_scene(stage, config, dems=dems, placement=placement, backend_opts=opts,
+                            overwrite=overwrite, scene=scene, image=image)
     d = res.diagnostics
     z = res.height.z_m
     click.echo(f"terrain: {z.shape[1]}x{z.shape[0]} px, "

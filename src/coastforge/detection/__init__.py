@@ -295,8 +295,19 @@ def detect_file(image_path: str | Path, out: str | Path, gsd_m: float | None = N
     from ..fsio import atomic_write_bytes, atomic_write_text, check_writable_file
     from ..io import read_image
 
+    from ..errors import InputError
+    from ..fsio import same_file
+
     cfg = config or Config()
     out = Path(out)
+    if overlay is not None:
+        if Path(overlay).suffix.lower() != ".png":
+            raise InputError(f"--overlay {overlay} must end in .png (the overlay is written as PNG)")
+        if Path(overlay).resolve() == out.resolve():
+            raise InputError(f"--overlay {overlay} is the same file as --out; give the overlay PNG its own name")
+    for what, p in (("--out", out), ("--overlay", overlay)):
+        if p is not None and same_file(p, image_path):
+            raise InputError(f"{what} {p} is the input image; write the detections to another file")
     check_writable_file(out, overwrite)
     if overlay is not None:
         check_writable_file(overlay, overwrite)

@@ -199,6 +199,12 @@ def run_exporter(fmt: str, scene: "Scene", assets: AssetResolver, config: "Expor
     return files
 
 
+def require_rasters(scene: "Scene") -> None:
+    """Every exporter needs the terrain: refuse a scene without its height or class raster."""
+    if scene.height is None or scene.classes is None:
+        raise InputError(f"scene {scene.name!r} has no height or class raster; run `coastforge terrain` first")
+
+
 def export_scene(scene_dir_or_scene: "str | Path | Scene", formats: str | Iterable[str] = ("ue5", "holoocean", "gltf"),
                  out_dir: str | Path | None = None, overwrite: bool = False,
                  mesh_lookup: Callable[[str], Any] | AssetResolver | None = None,
@@ -224,8 +230,7 @@ def export_scene(scene_dir_or_scene: "str | Path | Scene", formats: str | Iterab
         scene = load_scene(scene_dir)
         if scene_dir.is_file():
             scene_dir = scene_dir.parent
-    if scene.height is None or scene.classes is None:
-        raise InputError(f"scene {scene.name!r} has no height or class raster; run `coastforge terrain` first")
+    require_rasters(scene)
     out = Path(out_dir) if out_dir is not None else scene_dir
     assert out is not None
     if out.exists() and not out.is_dir():

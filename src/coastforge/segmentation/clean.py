@@ -26,7 +26,7 @@ import numpy as np
 from .. import frames
 from ..errors import InputError
 from ..rng import stage_rng
-from ..classes import WATER
+from ..classes import DETECTION_CATEGORIES, N_CLASSES, WATER
 from ..types import ClassMap, Detection, GeoImage
 
 TRANSIENT = ("boat", "vehicle", "buoy")  # objects that move or are placed as assets; piers stay
@@ -61,6 +61,9 @@ def load_detections(path: str | Path, image_size: tuple[int, int] | None = None)
         raise InputError(f"detections file {p} does not exist; pass the JSON written by `coastforge detect`")
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"detections file {p} is not a JSON text file (an image?); pass the JSON written by "
+                         "`coastforge detect`") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"detections file {p} is not valid JSON: {exc}") from exc
     items = data.get("detections") if isinstance(data, dict) else data
@@ -80,8 +83,16 @@ def load_detections(path: str | Path, image_size: tuple[int, int] | None = None)
     for i, d in enumerate(items):
         if not isinstance(d, dict) or "category" not in d or "corners_px" not in d:
             raise InputError(f"detection {i} in {p} needs \"category\" and \"corners_px\"")
-        corners = np.asarray(d["corners_px"], dtype=np.float64) * [sx, sy]
-        out.append(detection_from_corners(str(d["category"]), corners, float(d.get("score", 1.0))))
+        if d["category"] not in DETECTION_CATEGORIES:
+            raise InputError(f"detection {i} in {p} has category {d['category']!r}; valid: "
+                             f"{', '.join(DETECTION_CATEGORIES)} (as `coastforge detect` writes them)")
+        try:
+            corners = np.asarray(d["corners_px"], dtype=np.float64) * [sx, sy]
+            score = float(d.get("score", 1.0))
+        except (TypeError, ValueError):
+            raise InputError(f"detection {i} in {p}: corners_px = {d['corners_px']!r} must be 4 [col, row] pairs "
+                             f"of numbers and score = {d.get('score', 1.0)!r} a number") from None
+        out.append(detection_from_corners(str(d["category"]), corners, score))
     return out
 
 
@@ -338,15 +349,35 @@ def clean_file(image_path: str | Path, detections_path: str | Path, out_path: st
     from ..fsio import check_writable_file, read_png, write_png
     from ..io import read_image
 
+    from ..fsio import same_file
+    from ..io import image_damage
+
     cfg = config or Config()
+    if Path(out_path).suffix.lower() != ".png":
+        raise InputError(f"--out {out_path} must end in .png (the cleaned image is written as PNG)")
+    for what, p in (("the input image", image_path), ("--detections", detections_path), ("--classes", classes_path)):
+        if p is not None and same_file(out_path, p):
+            raise InputError(f"--out {out_path} is {what}; write the cleaned image to another file")
     out = check_writable_file(out_path, overwrite)
     image = read_image(image_path, gsd_m=gsd_m, size_m=size_m, config=cfg.io)
     dets = load_detections(detections_path, (image.grid.width_px, image.grid.height_px))
     cm = None
     if classes_path is not None:
+        if not Path(classes_path).is_file():
+            raise InputError(f"class map {classes_path} does not exist; pass the classes.png of `coastforge segment`")
+        why = image_damage(classes_path)
+        if why:
+            raise InputError(f"class map {classes_path} is truncated or corrupt: {why}; run coastforge segment again")
         ids = read_png(classes_path)
-        if ids.ndim != 2:
+        if ids.ndim != 2 or ids.dtype != np.uint8:
             raise InputError(f"class map {classes_path} must be a single-band PNG of class ids (classes.png)")
-        cm = ClassMap(ids=ids.astype(np.uint8), grid=image.grid)
+        if ids.shape != image.rgb.shape[:2]:
+            raise InputError(f"class map {classes_path} is {ids.shape[1]}x{ids.shape[0]} px but {image_path} is "
+                             f"{image.rgb.shape[1]}x{image.rgb.shape[0]} px; pass the classes.png segmented from "
+                             "this image")
+        if ids.max(initial=0) >= N_CLASSES:
+            raise InputError(f"class map {classes_path} holds class id {int(ids.max())}, not one of 0..{N_CLASSES - 1}; "
+                             "pass the classes.png of `coastforge segment` (not classes_preview.png)")
+        cm = ClassMap(ids=ids, grid=image.grid)
     cleaned = clean_image(image, dets, cm, seed=cfg.seed)
     return write_png(out, cleaned)

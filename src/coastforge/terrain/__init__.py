@@ -170,31 +170,47 @@ def estimate_terrain(class_map: ClassMap, config: TerrainConfig | Config, image:
     return TerrainResult(height=height, shore_type=shore.dominant, cross_sections=sections, diagnostics=diag)
 
 
-def terrain_scene(scene_dir: str | Path, config: Config, dems: Sequence = (), placement=None,
-                  image_path: str | Path | None = None, backend_opts: Mapping[str, Any] | None = None,
-                  overwrite: bool = False) -> TerrainResult:
-    """The ``coastforge terrain`` command: heights for a scene folder, written into it with the outputs."""
+def load_terrain_scene(scene_dir: str | Path, overwrite: bool = False):
+    """The scene ``coastforge terrain`` works on, checked: it has a class raster, and its height and terrain
+    outputs are replaced only with ``overwrite`` (then the old height is not even read: a damaged one is
+    what a new run repairs). Returns (folder, scene)."""
     from ..fsio import check_writable_file
-    from ..io import read_image
-    from ..scene import load_scene, save_scene
-    from .outputs import output_paths, write_terrain_outputs
+    from ..scene import load_scene
+    from .outputs import output_paths
 
     folder = Path(scene_dir)
     if folder.is_file() and folder.name.endswith(".json"):
         folder = folder.parent
-    scene = load_scene(folder)
-    if scene.classes is None:
-        raise InputError(f"scene {folder} has no class raster ({scene.terrain_paths['classes']}); "
-                         "run `coastforge segment` first or add the class map")
+    scene = load_scene(folder, rasters=False)
     height_path = folder / scene.terrain_paths["height"]
     for p in [height_path, *output_paths(folder / "terrain").values()]:
         check_writable_file(p, overwrite)
+    scene = load_scene(folder, height=False)
+    if scene.classes is None:
+        raise InputError(f"scene {folder} has no class raster ({scene.terrain_paths['classes']}); "
+                         "run `coastforge segment` first or add the class map")
+    return folder, scene
+
+
+def terrain_scene(scene_dir: str | Path, config: Config, dems: Sequence = (), placement=None,
+                  image_path: str | Path | None = None, backend_opts: Mapping[str, Any] | None = None,
+                  overwrite: bool = False, *, scene=None, image=None) -> TerrainResult:
+    """The ``coastforge terrain`` command: heights for a scene folder, written into it with the outputs.
+    ``scene`` and ``image``: already loaded and checked (``load_terrain_scene``, ``io.read_image``), e.g. from
+    the real folder before the run writes into a staging copy of it."""
+    from ..io import read_image
+    from ..scene import save_scene
+    from .outputs import write_terrain_outputs
+
+    folder = Path(scene_dir)
+    if folder.is_file() and folder.name.endswith(".json"):
+        folder = folder.parent
+    if scene is None:
+        folder, scene = load_terrain_scene(folder, overwrite)
     grid = scene.grid
     class_map = ClassMap(ids=scene.classes, grid=grid)
-    image = None
-    if image_path is not None:
-        img = read_image(image_path, size_m=tuple(scene.extent_m), config=config.io)
-        image = img
+    if image is None and image_path is not None:
+        image = read_image(image_path, size_m=tuple(scene.extent_m), config=config.io)
     res = estimate_terrain(class_map, config, image=image, dems=dems, seed=scene.seed,
                            backend_opts=backend_opts, placement=placement)
     prov = dict(scene.provenance)
@@ -205,4 +221,4 @@ def terrain_scene(scene_dir: str | Path, config: Config, dems: Sequence = (), pl
 
 
 __all__ = ["SHORE_TYPES", "CrossSection", "TerrainBackend", "TerrainDiagnostics", "TerrainResult", "estimate_terrain",
-           "make_backend", "terrain_scene"]
+           "load_terrain_scene", "make_backend", "terrain_scene"]

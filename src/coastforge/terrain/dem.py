@@ -52,7 +52,7 @@ class DemSource:
             except ValueError:
                 num = math.nan
             if not math.isfinite(num):
-                raise InputError(f"--dem {text!r}: {key}={val!r} is not a number; e.g. {path}:offset=-0.3")
+                raise InputError(f"--dem {text!r}: {key}={val!r} is not a finite number; e.g. {path}:offset=-0.3")
             if key.strip() == "offset":
                 offset = num
             elif key.strip() == "scale":
