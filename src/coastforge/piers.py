@@ -339,10 +339,10 @@ def set_deck_heights(objects, class_ids: np.ndarray, height: HeightMap, config: 
     end (a walkway leaves the quay flush), the convention of the truth scenes ``coastforge synth`` makes.
 
     A pier object's z is its asset's origin, and the deck top stands ``config.deck_height_m`` above it (the
-    kit's decks: 0.6 m, ``synth.PIER_DECK_M``); so z = ground at the land end - deck_height_m, kept between the
-    water level (a floating pontoon) and the quay height (no deck above a quay's top + deck height). A
-    structure with no land near any end (it floats) gets the quay height as its deck. Other objects pass
-    unchanged."""
+    kit's decks: 0.6 m, ``synth.PIER_DECK_M``); so z = deck top - deck_height_m, where the deck top is the
+    ground at the land end or the quay height, whichever is higher, and z stays between the water level and
+    the quay height. A structure with no land near any end gets the quay height as its deck. Other objects
+    pass unchanged."""
     import cv2
 
     piers = [o for o in objects if o.category == "pier"]
@@ -369,7 +369,9 @@ def set_deck_heights(objects, class_ids: np.ndarray, height: HeightMap, config: 
                 z = _ground_near(land, height, end, r_m)
                 if z is not None and z[0] > best[0]:
                     best = z
-        deck_top = best[1]
+        # the terrain estimated near a shoreline runs low (its profiles rise from the water level), so the
+        # deck stands at least at the quay height: a walkway leaves the top of a quay, not its toe
+        deck_top = max(best[1], water_level_m + quay_height_m)
         z_of[sid] = float(np.clip(deck_top - config.deck_height_m, water_level_m, water_level_m + quay_height_m))
     from dataclasses import replace
 
