@@ -375,3 +375,27 @@ def test_generate_tiled_writes_the_scene_contract(scene_png, tmp_path):
     spec = json.loads((out / "ue5_tiles" / "landscape_tiles.json").read_text())
     assert spec["tile_list"] and res.exports["ue5_tiles"]
     assert sum(v for k, v in res.n_objects.items() if k != "vegetation") > 0
+
+
+def test_generate_tiled_reconciles_and_self_checks_like_a_whole_image_run(scene_png, tmp_path, monkeypatch):
+    """A tiled run whose segmenter missed a marina's water (all asphalt) gets it back from the moored boats,
+    on the whole scene grid, and the self-check runs: as in a whole-image run (issue #26)."""
+    import json
+
+    from coastforge.pipeline import GenerateRequest
+
+    monkeypatch.setattr(tiling, "segment_tiled", lambda src, **kw: np.full(
+        (src.grid.height_px, src.grid.width_px), ASPHALT, np.uint8))
+    rows = [Detection("boat", 0.9, 300.0 + 14.0 * k, 300.0 + 40.0 * r, 30.0, 10.0, 90.0)
+            for k in range(6) for r in range(2)]  # two bow-in rows of six 6 m boats (0.2 m/px)
+    monkeypatch.setattr(tiling, "detect_tiled", lambda src, **kw: list(rows))
+    req = GenerateRequest(image=str(scene_png), out=str(tmp_path / "tiled"), gsd_m=0.2, report=False)
+    res = tiling.generate_tiled(req, Config(), tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
+    prov = json.loads(res.scene_path.read_text())["provenance"]
+    assert prov["consistency"]["boat_clusters_made_water"] == 1 and prov["consistency"]["water_from_boats_m2"] > 100
+    from coastforge.scene import load_scene
+
+    ids = load_scene(res.scene_path).classes
+    assert ids[155:165, 160:175].tolist() == np.full((10, 15), WATER).tolist()  # the cluster, on the 300 px grid
+    assert any(w["code"] for w in prov["warnings"])  # the self-check ran (a nearly single-class scene)
+    assert res.warnings and res.warnings[0].message

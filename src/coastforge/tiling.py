@@ -683,6 +683,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     from .terrain.outputs import write_terrain_outputs
     from .config import validate_config
     from .io import check_memory
+    from .consistency import water_from_boats
+    from .selfcheck import check_scene
     from .vegetation import scatter
 
     _check_tiling(tile_px, overlap_px)
@@ -726,6 +728,13 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
             del full_cm
             class_map = ClassMap(s_ids, sgrid)
             s_dets = [scale_detection(d, fx) for d in dets]
+            # each tile's detections were checked against its own water; the water the boats make is decided
+            # here, on the whole scene grid (bounded), so a marina cut by tile borders becomes water as in a
+            # whole-image run
+            consistency: dict = {}
+            if config.detect.boats_make_water:
+                class_map, consistency = water_from_boats(s_dets, class_map, sgrid.gsd_m)
+        warns = check_scene(class_map.ids, sgrid.gsd_m, s_dets)  # the self-check, as a whole-image run makes it
         atomic_write_text(out / "detections.json",
                           detections_to_json(dets, grid.gsd_m, (W, H), {"tiled": True, "tile_px": tile_px}))
         bg.submit("cleaned", lambda: write_png(out / "cleaned.png", clean_image(overview, s_dets, class_map, seed)))
@@ -737,7 +746,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         with timer.stage("library"):  # the time the chain waited for the library
             library = bg.result("library")
             kit, missing = fallback_kit(library, req.library)
-            warns = [fallback_warning(req.library, missing)] if missing else []
+            warns += [fallback_warning(req.library, missing)] if missing else []
         with timer.stage("match"):
             decisions = _match_tiled(src, dets, library, config, tile_px, kit)
             objects = place_decisions(decisions, dets, library, grid, config, height, kit)
@@ -761,7 +770,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
                     req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
                     tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
                            "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m},
-                    warnings=[w.to_dict() for w in warns]))
+                    consistency=consistency, warnings=[w.to_dict() for w in warns]))
     exports = {}
     if req.exports:
         with timer.stage("export"):
