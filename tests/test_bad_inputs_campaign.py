@@ -537,14 +537,12 @@ def _message_case(case: str, tmp: Path, img: Path, scene: Path, lib: Path, src: 
 
         from coastforge import fsio
 
-        real_open = rasterio.open
+        import rasterio.io
 
-        def failing(path, mode="r", **kw):
-            if mode == "w":
-                raise rasterio.errors.RasterioIOError("Write failed. See previous exception for details.")
-            return real_open(path, mode, **kw)
+        def failing(self, *a, **kw):  # GeoTIFFs are encoded in memory (fsio.write_geotiff): GDAL fails there
+            raise rasterio.errors.RasterioIOError("Write failed. See previous exception for details.")
 
-        monkeypatch.setattr(rasterio, "open", failing)
+        monkeypatch.setattr(rasterio.io.MemoryFile, "open", failing)
         full = os.statvfs_result((4096, 4096, 0, 0, 0, 0, 0, 0, 0, 255))
         monkeypatch.setattr(fsio, "os", _os_with(statvfs=lambda p: full))
         return ["synth", "--preset", "simple_pier_a", "--gsd", "0.4", "--out", tmp / "o"], "the disk is full", 2

@@ -297,7 +297,8 @@ def test_library_build_never_drops_assets_without_overwrite(tmp_path):
 
 # ---------------------------------------------------------------- OS errors: one line naming the path
 
-@pytest.mark.parametrize("case", ["under_a_file", "broken_link", "link_loop", "proc", "disk_full", "read_only"])
+@pytest.mark.parametrize("case", ["under_a_file", "broken_link", "link_loop", "proc", "disk_full", "read_only",
+                                  "disk_full_geotiff"])
 def test_os_errors_name_the_path(case, images, tmp_path, monkeypatch):
     out = tmp_path / "out"
     expect = ""
@@ -316,12 +317,13 @@ def test_os_errors_name_the_path(case, images, tmp_path, monkeypatch):
     else:
         import coastforge.fsio as fsio
 
-        code = errno.ENOSPC if case == "disk_full" else errno.EROFS
-        expect = "disk is full" if case == "disk_full" else "read-only"
+        code = errno.EROFS if case == "read_only" else errno.ENOSPC
+        expect = "read-only" if case == "read_only" else "disk is full"
+        target = "height.tif" if case == "disk_full_geotiff" else "hillshade.png"  # GeoTIFFs: encoded in memory
         real = fsio.atomic_path
 
         def failing(path, suffix=None):
-            if str(path).endswith("hillshade.png"):
+            if str(path).endswith(target):
                 raise OSError(code, os.strerror(code))
             return real(path, suffix)
 
@@ -329,8 +331,8 @@ def test_os_errors_name_the_path(case, images, tmp_path, monkeypatch):
     r = _run(["generate", images[0], *GSD, "--out", out, "--no-report"])
     assert r.exit_code == 2, r.output
     assert r.has(expect) and not r.has("Traceback")
-    if case in ("disk_full", "read_only"):
-        assert r.has("hillshade.png") and not out.exists()
+    if case in ("disk_full", "read_only", "disk_full_geotiff"):
+        assert r.has(target) and not out.exists()
 
 
 def test_an_unexpected_error_is_one_line_and_a_log(images, tmp_path, monkeypatch):

@@ -200,13 +200,19 @@ def write_geotiff(path: str | os.PathLike, array: np.ndarray, transform, crs=Non
     )
     if a.shape[1] >= 256 and a.shape[2] >= 256:
         profile.update(tiled=True, blockxsize=256, blockysize=256)
-    with atomic_path(path, suffix=".tif") as tmp:
-        try:
-            with rasterio.open(tmp, "w", **profile) as dst:
+    # encoded in memory, then written by atomic_write_bytes: a full disk or a read-only folder is then our
+    # one clear error, not libtiff's own lines on stderr before it (the file is compressed: a scene grid's
+    # height map is tens of MB at most)
+    from rasterio.io import MemoryFile
+
+    try:
+        with MemoryFile() as mem:
+            with mem.open(**profile) as dst:
                 dst.write(a)
-        except rasterio.errors.RasterioError as exc:  # GDAL says "Write failed" and no errno: find out why
-            raise _write_error(Path(path), exc) from None
-    return Path(path)
+            data = mem.read()
+    except rasterio.errors.RasterioError as exc:  # GDAL says "Write failed" and no errno: find out why
+        raise _write_error(Path(path), exc) from None
+    return atomic_write_bytes(path, data)
 
 
 def _write_error(path: Path, exc: Exception) -> OSError:
