@@ -356,7 +356,6 @@ class FolderLock:
 
     def acquire(self) -> "FolderLock":
         import fcntl
-        import time
 
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -448,15 +447,12 @@ def _hardlink_copy(src: Path, dst: Path) -> None:
 def _written_into(staging: Path, out: Path) -> bool:
     """Whether the run wrote any file into ``staging``: one that ``out`` lacks, or holds as another file
     (the staging copy of an update shares its unchanged files with ``out`` as hard links)."""
-    for root, _dirs, files in os.walk(staging):
-        for f in files:
-            p = os.path.join(root, f)
-            twin = out / os.path.relpath(p, staging)
-            try:
-                if not twin.exists() or not os.path.samefile(p, twin):
-                    return True
-            except OSError:
+    for f in _all_files(staging):
+        try:
+            if not (out / f).exists() or not os.path.samefile(staging / f, out / f):
                 return True
+        except OSError:
+            return True
     return False
 
 

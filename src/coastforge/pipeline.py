@@ -223,8 +223,9 @@ def assets_by_category(library, kit=None) -> dict[str, list[str]]:
     out: dict[str, list[str]] = {}
     for a in library.assets:
         out.setdefault(a.category, []).append(a.id)
+    own = set(out)
     for a in (kit.assets if kit is not None else ()):
-        if a.category not in {b.category for b in library.assets}:
+        if a.category not in own:
             out.setdefault(a.category, []).append(a.id)
     return out
 
@@ -295,13 +296,9 @@ def check_dems(req: GenerateRequest, image) -> None:
     if not req.dems:
         return
     from .errors import InputError
-    from .terrain.dem import DemSource
+    from .terrain.dem import check_dem_files
 
-    for spec in req.dems:
-        dem = DemSource.parse(spec)
-        if not dem.path.is_file():
-            raise InputError(f"--dem {dem.path} {'is a folder' if dem.path.is_dir() else 'does not exist'}; "
-                             "pass a DEM / bathymetry GeoTIFF")
+    check_dem_files(req.dems)
     if image is not None:
         georef = image.grid.crs is not None and image.grid.transform is not None
     else:  # a tiled run reads the image later: its header says

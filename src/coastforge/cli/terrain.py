@@ -32,7 +32,7 @@ def terrain(scene_dir, dems, dem_crs, dem_origin, image_path, backend, weights, 
 
     from ..errors import InputError
     from ..terrain import load_terrain_scene, terrain_scene
-    from ..terrain.dem import DemSource, Placement
+    from ..terrain.dem import Placement, check_dem_files
 
     if (dem_crs is None) != (dem_origin is None):
         raise InputError("--dem-crs and --dem-origin go together: give both (CRS and top-left X Y) "
@@ -45,11 +45,7 @@ def terrain(scene_dir, dems, dem_crs, dem_origin, image_path, backend, weights, 
         config = dataclasses.replace(config, terrain=dataclasses.replace(config.terrain, backend=backend))
     opts = {"weights": weights} if weights else {}
     # every check before anything is written, with the scene's real paths in the messages
-    for spec in dems:
-        dem = DemSource.parse(spec)
-        if not dem.path.is_file():
-            raise InputError(f"--dem {dem.path} {'is a folder' if dem.path.is_dir() else 'does not exist'}; "
-                             "pass a DEM / bathymetry GeoTIFF")
+    check_dem_files(dems)
     src = Path(scene_dir)
     folder, scene = load_terrain_scene(src, overwrite)
     image = None

@@ -26,6 +26,17 @@ from ..types import Grid
 DEM_MAX_ABS_M = 12_000.0
 
 
+def check_dem_files(specs: Sequence) -> list["DemSource"]:
+    """The parsed ``--dem`` specs; an ``InputError`` for one whose file is missing or a folder (before any
+    work is done)."""
+    out = [DemSource.parse(spec) for spec in specs]
+    for dem in out:
+        if not dem.path.is_file():
+            raise InputError(f"--dem {dem.path} {'is a folder' if dem.path.is_dir() else 'does not exist'}; "
+                             "pass a DEM / bathymetry GeoTIFF")
+    return out
+
+
 @dataclass(frozen=True)
 class DemSource:
     path: Path
