@@ -37,7 +37,8 @@ FORMAT = "coastforge.learned_segmenter/1"
 TILE_PX = 768  # tile side at the working GSD (memory ~ 40 MB of activations per tile)
 FLIPS = ((), (3,), (2,), (2, 3))  # test-time passes: as is, mirrored, flipped, both (numpy axes of NCHW)
 GSD_RANGE_M = (0.04, 0.6)  # outside, the classical segmenter is used (see LearnedSegmenter.segment)
-OVERLAP_PX = 48  # context kept around each tile centre (> half the network's useful receptive field)
+OVERLAP_PX = 48  # context kept around each tile centre (> half the network's useful receptive field);
+# a model's card may ask for more ("overlap_px": deeper networks see further)
 WATER_MODES = ("fused", "classical", "net")
 # the classical water model's vote in the network's water log-odds (fused mode): a factor of e^3 ~ 20 in the
 # odds, so a network surer than ~0.95 keeps its call and an unsure one follows the rules (which know rafted
@@ -128,11 +129,12 @@ class LearnedSegmenter:
         """Logits (h, w, 8) averaged over the flipped passes ``flips`` (numpy axes of NCHW)."""
         sess = self._session()
         mult = int(self.meta.get("multiple", 16))
+        overlap = int(self.meta.get("overlap_px", OVERLAP_PX))
         h, w = rgb.shape[:2]
         out = np.empty((h, w, N_CLASSES), np.float32)
         name = sess.get_inputs()[0].name
-        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, OVERLAP_PX):
-            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, OVERLAP_PX):
+        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, overlap):
+            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, overlap):
                 tile = rgb[r0:r1, c0:c1]
                 th, tw = tile.shape[:2]
                 ph, pw = (-th) % mult, (-tw) % mult

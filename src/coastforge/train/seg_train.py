@@ -59,6 +59,9 @@ IGNORE = 255
 # label codes of the training rasters: 0-7 our classes; 8-10 sets of them (coarse real labels)
 SET_PAVED, SET_VEGETATION, SET_BARE, REAL_WATER, SET_LAND = 8, 9, 10, 11, 12
 N_CODES = 13  # REAL_WATER: water of a real photo (weighted as a set, not by the renders' water share)
+# input side multiple and the tile overlap inference needs (> half the useful receptive field) per network
+ARCH_MULTIPLE = {"unet4": 16, "unet5": 32}
+ARCH_OVERLAP_PX = {"unet4": 48, "unet5": 96}
 DUBAI_NOMINAL_GSD_M = 0.6  # ../shared/data/README.md: "about 0.5-1 m/px"; DESIGN.md §5 uses 0.6
 
 
@@ -361,7 +364,7 @@ def _eval_marina(onnx_path: Path, meta: dict) -> str:
 
 def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch: int = 12, crop: int = 128,
           lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400,
-          real: tuple[str, ...] = (), init: str | Path | None = None) -> Path:
+          real: tuple[str, ...] = (), init: str | Path | None = None, arch: str = "unet4") -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -388,7 +391,7 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     print(f"{len(levels)} levels" + "".join(f" + {n} {k} images" for k, n in counts.items())
           + f" loaded in {time.time() - t0:.0f} s; class weights "
           + " ".join(f"{n}={w:.2f}" for n, w in zip(CLASS_NAMES, weights)), flush=True)
-    net = build_segmenter(N_CLASSES, width)
+    net = build_segmenter(N_CLASSES, width, arch)
     if init is not None:
         from .common import init_from_onnx
 
@@ -410,7 +413,8 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     onnx_path, meta_path = out / "segmenter.onnx", out / "segmenter.json"
     cmd = (f"python -m coastforge.train.seg_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1}"
            f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
-           f"--batch {batch} --crop {crop} --width {width} --seed {seed} --lr {lr}")
+           f"--batch {batch} --crop {crop} --width {width} --seed {seed} --lr {lr}"
+           + (f" --arch {arch}" if arch != "unet4" else ""))
     if real:
         cmd += " --real " + ",".join(f"{k}:{v:g}" for k, v in shares.items())
     if init is not None:
@@ -420,7 +424,8 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     # real photos at ~0.4-1.2 m/px (Dubai with its scale jitter, the ship photos) widen the range of GSDs the
     # network may be trusted with; renders alone cover ~0.04-0.6 m/px
     gsd_range = [0.04, 1.2] if real else [0.04, 0.6]
-    meta = {"format": FORMAT, "classes": list(CLASS_NAMES), "work_gsd_m": WORK_GSD_M, "multiple": 16,
+    meta = {"format": FORMAT, "classes": list(CLASS_NAMES), "work_gsd_m": WORK_GSD_M,
+            "multiple": ARCH_MULTIPLE[arch], "overlap_px": ARCH_OVERLAP_PX[arch], "arch": arch,
             "gsd_range_m": gsd_range,
             "input": "RGB 0..1, NCHW", "output": "logits (1, 8, H, W)",
             "datasets": datasets,
@@ -467,11 +472,13 @@ def main(argv: list[str] | None = None) -> None:
                          "NAME:SHARE sets the share of each batch (default " +
                          ", ".join(f"{k} {v}" for k, v in REAL_SHARES.items()) + ")")
     ap.add_argument("--init", default=None, help="start from this exported segmenter.onnx")
+    ap.add_argument("--arch", default="unet4", choices=sorted(ARCH_MULTIPLE),
+                    help="unet4: 4 stages (1/16); unet5: a 1/32 stage too (wider context)")
     a = ap.parse_args(argv)
-    if a.crop % 16:
-        raise InputError(f"--crop {a.crop} must be a multiple of 16")
+    if a.crop % ARCH_MULTIPLE[a.arch]:
+        raise InputError(f"--crop {a.crop} must be a multiple of {ARCH_MULTIPLE[a.arch]} for --arch {a.arch}")
     train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
-          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init)
+          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch)
 
 
 def parse_real(items: tuple[str, ...]) -> dict[str, float]:
