@@ -216,3 +216,27 @@ def test_bad_paths_raise_the_projects_errors(tmp_path):
     with pytest.raises(InputError, match="unknown export format 'fbx'"):
         coastforge.export_scene(example_dir(), ["fbx"], out=tmp_path / "x")
     assert not (tmp_path / "o").exists() and not (tmp_path / "x").exists()
+
+
+def test_the_commands_call_the_api(monkeypatch, tmp_path):
+    """generate, export and evaluate are thin calls: what the API returns is what they print."""
+    from coastforge import api
+
+    calls = []
+
+    def evaluate_scenes(truth, pred):
+        calls.append((truth, pred))
+        return {"n_truth": 7}
+
+    monkeypatch.setattr(api, "evaluate_scenes", evaluate_scenes)
+    out = _cli("evaluate", "--truth", tmp_path / "t.json", "--pred", tmp_path, "--json")
+    assert json.loads(out) == {"n_truth": 7} and calls == [(str(tmp_path / "t.json"), str(tmp_path))]
+
+    def export_scene(scene, formats, **kw):
+        calls.append((scene, formats, kw["out"], kw["config"].export.gltf_max_vertices))
+        return api.ExportResult(tmp_path, {"gltf": [tmp_path / "gltf" / "a.glb"]})
+
+    monkeypatch.setattr(api, "export_scene", export_scene)
+    out = _cli("export", tmp_path, "--format", "gltf", "--out", tmp_path / "o", "--set", "export.gltf_max_vertices=9")
+    assert calls[-1] == (str(tmp_path), "gltf", str(tmp_path / "o"), 9)
+    assert out.strip() == f"gltf: 1 files under {tmp_path / 'gltf'}"
