@@ -240,3 +240,15 @@ def test_the_commands_call_the_api(monkeypatch, tmp_path):
     out = _cli("export", tmp_path, "--format", "gltf", "--out", tmp_path / "o", "--set", "export.gltf_max_vertices=9")
     assert calls[-1] == (str(tmp_path), "gltf", str(tmp_path / "o"), 9)
     assert out.strip() == f"gltf: 1 files under {tmp_path / 'gltf'}"
+
+
+def test_the_readme_example_runs(tmp_path, monkeypatch, capsys):
+    """The README's "Python API" example, as written (in a scratch folder)."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Python API", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README.md", "exec"), {})
+    printed = capsys.readouterr().out.splitlines()
+    assert len(printed) == 3 and printed[0].startswith("my_scene/scene.json")
+    assert (tmp_path / "my_scene" / "sdf").is_dir() and (tmp_path / "my_scene" / "report.html").is_file()
