@@ -1,8 +1,58 @@
 """coastforge: one overhead image of a coastline in, a marine-robotics simulation environment out.
 
-Kept free of heavy imports so that ``coastforge --help`` answers instantly.
+The Python API (``coastforge.api``; the commands are thin calls of it)::
+
+    import coastforge
+
+    run = coastforge.generate("harbor.jpg", gsd=0.2, out="my_scene", export=["gltf"])
+    scene = coastforge.Scene.load("my_scene")
+    coastforge.export_scene("my_scene", ["sdf"])
+    metrics = coastforge.evaluate_scenes("truth.json", "my_scene")
+
+Its names are loaded on first use (PEP 562), so ``import coastforge`` imports nothing heavy and
+``coastforge --help`` answers instantly.
 """
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__"]
+# public name -> (module, attribute), imported on first access
+_LAZY: dict[str, tuple[str, str]] = {
+    "generate": ("api", "generate"),
+    "export_scene": ("api", "export_scene"),
+    "evaluate_scenes": ("api", "evaluate_scenes"),
+    "make_config": ("api", "make_config"),
+    "ExportResult": ("api", "ExportResult"),
+    "GenerateResult": ("pipeline", "GenerateResult"),
+    "Scene": ("scene", "Scene"),
+    "SceneObject": ("scene", "SceneObject"),
+    "Config": ("config", "Config"),
+    "CoastforgeError": ("errors", "CoastforgeError"),
+}
+
+__all__ = ["__version__", *_LAZY]
+
+if TYPE_CHECKING:  # what type checkers and IDEs see; at run time __getattr__ imports on first use
+    from .api import ExportResult, evaluate_scenes, export_scene, generate, make_config
+    from .config import Config
+    from .errors import CoastforgeError
+    from .pipeline import GenerateResult
+    from .scene import Scene, SceneObject
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module, attr = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), attr)
+    globals()[name] = value  # later look-ups skip __getattr__
+    return value
+
+
+def __dir__() -> list[str]:
+    # the API, loaded or not, and the submodules imported so far (not this file's own imports)
+    subs = {n for n, v in globals().items() if getattr(v, "__name__", "").startswith(f"{__name__}.")}
+    return sorted({*__all__, *subs})

@@ -11,6 +11,7 @@ import math
 import operator
 import sys
 import typing
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
@@ -386,17 +387,49 @@ def load_config(preset: str = "default", path: str | Path | None = None, sets: l
             raise ConfigError(f"config file {p} is not a text file (an image?); pass a TOML file with sections "
                               "as in the presets, e.g. [terrain] max_depth_m = 12") from None
         cfg = _apply(Config, cfg, _read_toml(text, str(p)), "")
-    for item in sets:
-        cfg = _apply(Config, cfg, parse_set(item), "")
+    cfg = apply_settings(cfg, sets)
     if seed is not None:
-        try:
-            if isinstance(seed, bool):
-                raise TypeError
-            seed = operator.index(seed)  # ints, numpy ints; not 1.5 or "3"
-        except TypeError:
-            raise ConfigError(f"--seed {seed!r} must be a whole number between 0 and {2**63 - 1}") from None
-        cfg = dataclasses.replace(cfg, seed=seed)
+        cfg = with_seed(cfg, seed)
     return validate_config(cfg)
+
+
+def apply_settings(cfg: Config, settings: Mapping[str, Any] | Iterable[str] | None) -> Config:
+    """``cfg`` with single overrides applied, in order: ``--set`` items (``"terrain.max_depth_m=12"``, the
+    value parsed as TOML) or a mapping of dotted keys to Python values (``{"terrain.max_depth_m": 12}``; a
+    section may also map to a dict of its keys). Unknown keys and wrong types raise ``ConfigError``; ranges
+    are left to ``validate_config``."""
+    if settings is None:
+        return cfg
+    if isinstance(settings, str):  # one item, not its characters
+        settings = (settings,)
+    if isinstance(settings, Mapping):
+        for key, value in settings.items():
+            if not isinstance(key, str) or not all(key.split(".")):
+                raise ConfigError(f"config override key {key!r} must look like section.key (e.g. "
+                                  "terrain.max_depth_m)")
+            nested: Any = value
+            for part in reversed(key.split(".")):
+                nested = {part: nested}
+            cfg = _apply(Config, cfg, nested, "")
+        return cfg
+    items = settings if isinstance(settings, Iterable) else (settings,)
+    for item in items:
+        if not isinstance(item, str):
+            raise ConfigError(f"config override {item!r} must be a KEY=VALUE string (e.g. terrain.max_depth_m=12) "
+                              "or given in a mapping {key: value}")
+        cfg = _apply(Config, cfg, parse_set(item), "")
+    return cfg
+
+
+def with_seed(cfg: Config, seed: Any) -> Config:
+    """``cfg`` with the root seed ``seed``: a whole number (ints and numpy ints; not 1.5, True or "3")."""
+    try:
+        if isinstance(seed, bool):
+            raise TypeError
+        seed = operator.index(seed)
+    except TypeError:
+        raise ConfigError(f"--seed {seed!r} must be a whole number between 0 and {2**63 - 1}") from None
+    return dataclasses.replace(cfg, seed=seed)
 
 
 # ------------------------------------------------------------------------------------------ validation

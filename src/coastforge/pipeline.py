@@ -15,6 +15,7 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Callable
 
@@ -24,7 +25,7 @@ from . import __version__
 from .classes import PAVED, WATER
 from .config import Config
 from .fsio import atomic_write_text
-from .scene import Scene, SceneObject, save_scene, save_scene_rasters
+from .scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
 from .types import ClassMap, Detection, GeoImage
 
 Progress = Callable[[str, float], None]  # (stage name, fraction done)
@@ -50,14 +51,21 @@ class GenerateRequest:
 
 @dataclass(frozen=True)
 class GenerateResult:
+    """What ``generate`` made: the paths of the scene, its exports and report, with the run's figures."""
+
     scene_path: Path
     out_dir: Path
-    timings_s: dict
-    n_objects: dict
-    exports: dict = field(default_factory=dict)
+    timings_s: dict[str, float]  # wall seconds per stage, and "total"
+    n_objects: dict[str, int]  # per category, vegetation included
+    exports: dict[str, list[Path]] = field(default_factory=dict)  # the written files per format
     report_path: Path | None = None
     warnings: list = field(default_factory=list)  # selfcheck.SceneWarning: the scene looks implausible
-    notes: tuple = ()  # what the output folder's recovery did (an earlier run's leftovers removed)
+    notes: tuple[str, ...] = ()  # what the output folder's recovery did (an earlier run's leftovers removed)
+
+    @cached_property
+    def scene(self) -> Scene:
+        """The generated scene, read from ``scene_path`` on first use (the command only prints paths)."""
+        return load_scene(self.scene_path)
 
 
 class _Timer:

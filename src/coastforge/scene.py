@@ -125,6 +125,16 @@ class Scene:
     def with_objects(self, objects) -> "Scene":
         return replace(self, objects=tuple(objects))
 
+    @classmethod
+    def load(cls, path: str | Path, rasters: bool = True) -> "Scene":
+        """The scene in ``path``: a scene folder, its ``scene.json``, or a synthetic level's ``truth.json``
+        (``load_scene``). Raises ``SceneFormatError`` naming what is missing or malformed."""
+        return load_scene(path, rasters=rasters)
+
+    def save(self, folder: str | Path, filename: str = "scene.json") -> Path:
+        """Write the scene file and its rasters into ``folder`` (``save_scene``); returns the scene file."""
+        return save_scene(self, folder, filename)
+
 
 # ---------------------------------------------------------------- validation
 

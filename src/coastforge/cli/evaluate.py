@@ -13,10 +13,9 @@ import click
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of a table.")
 def evaluate(truth_path: str, pred_path: str, as_json: bool) -> None:
     """Compare PRED with TRUTH: XY/rotation/orientation RMSE, recall, precisions, terrain and pier checks."""
-    from ..evaluate import evaluate_scenes
-    from ..scene import load_scene
+    from ..api import evaluate_scenes
 
-    result = evaluate_scenes(load_scene(truth_path), load_scene(pred_path))
+    result = evaluate_scenes(truth_path, pred_path)
     if as_json:
         click.echo(json.dumps(result, indent=2))
         return

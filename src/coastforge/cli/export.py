@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import overwrite_option, pass_config, staged
+from .options import overwrite_option, pass_config
 
 
 @click.command("export")
@@ -19,30 +19,15 @@ from .options import overwrite_option, pass_config, staged
 @pass_config
 def export(scene_dir, formats, out_dir, library_dir, overwrite, config):
     """Export a scene to simulator formats, each under OUT/<format>/."""
-    from pathlib import Path
+    import shlex
+    import sys
 
-    from ..errors import OutputExistsError
-    from ..export import export_scene, export_summary, parse_formats, require_rasters
-    from ..scene import load_scene
+    from ..api import export_scene
+    from ..export import export_summary
 
-    library = None
-    if library_dir is not None:
-        from ..assets.library import Library
-
-        library = Library.load(library_dir)
-
-    fmts = parse_formats(formats or config.export.formats)  # checked before anything is written
-    src = Path(scene_dir)
-    require_rasters(load_scene(src))  # so is the scene, with its real paths in the messages
-    target = Path(out_dir) if out_dir is not None else (src.parent if src.is_file() else src)
-    if not overwrite:  # before any work: an existing export is replaced only on request
-        done = [f for f in fmts if (target / f).is_dir() and any((target / f).iterdir())]
-        if done:
-            raise OutputExistsError(f"{target / done[0]} exists; pass --overwrite to replace the {done[0]} "
-                                    "export, or choose another --out")
-    # all-or-nothing: every format is written into a staging copy of the target, swapped in when all are done
-    with staged(target, update=True) as stage:
-        written = export_scene(src, fmts, out_dir=stage, overwrite=overwrite, config=config.export,
-                               library=library)
-    for line in export_summary({f: [target / p.relative_to(stage) for p in ps] for f, ps in written.items()}):
+    res = export_scene(scene_dir, formats or None, out=out_dir, library=library_dir, overwrite=overwrite,
+                       config=config, command=shlex.join(["coastforge", *sys.argv[1:]]))
+    for n in res.notes:  # what recovery did (an earlier run's leftovers)
+        click.echo(f"note: {n}", err=True)
+    for line in export_summary(res.files):
         click.echo(line)

@@ -28,19 +28,8 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..errors import InputError
-    from ..export import FORMATS
-    from ..pipeline import GenerateRequest, run_generate
+    from ..api import generate as run
 
-    fmts = tuple(f.strip() for f in exports.split(",") if f.strip())
-    valid = tuple(FORMATS)
-    bad = [f for f in fmts if f not in valid]
-    if bad:
-        raise InputError(f"--export {','.join(bad)} is not a known format; valid formats: {', '.join(valid)}")
-    req = GenerateRequest(image=image, out=out, gsd_m=gsd, size_m=tuple(size_m) if size_m else None,
-                          library=library, exports=fmts, dems=tuple(dems), overwrite=overwrite,
-                          report=not no_report, command=shlex.join(["coastforge", *sys.argv[1:]]),
-                          side_process=True)
     console = Console(stderr=True)
     with Progress(TextColumn("{task.description:<12}"), BarColumn(), TimeElapsedColumn(), console=console,
                   transient=True) as bar:
@@ -49,7 +38,9 @@ def generate(image, gsd, size_m, library, out, exports, dems, no_report, overwri
         def progress(stage: str, frac: float) -> None:
             bar.update(task, description=stage)
 
-        result = run_generate(req, config, progress)
+        result = run(image, out=out, gsd=gsd, size_m=tuple(size_m) if size_m else None, export=exports,
+                     library=library, dem=dems, report=not no_report, overwrite=overwrite, config=config,
+                     progress=progress, side_process=True, command=shlex.join(["coastforge", *sys.argv[1:]]))
     for n in result.notes:
         console.print(f"note     {escape(n)}")
     counts = ", ".join(f"{v} {k}" for k, v in result.n_objects.items())
