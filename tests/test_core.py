@@ -17,8 +17,13 @@ from coastforge.errors import BackendUnavailable, ConfigError
 from coastforge.rng import stage_rng, stage_seed
 
 
+def test_config_defaults_are_the_default_preset():
+    # one source of defaults: code that builds Config() runs the pipeline the CLI runs
+    assert Config() == load_config("default") == load_config()
+    assert Config().segment.backend == "learned" and Config().detect.backend == "hybrid"
+
+
 def test_config_defaults_presets_and_sets(tmp_path):
-    assert load_config().terrain.max_depth_m == Config().terrain.max_depth_m
     assert {"default", "fast", "variety"} <= set(preset_names())
     assert load_config("variety").match.mode == "sample"
     c = load_config(sets=["terrain.max_depth_m=12", "export.formats=['gltf','usd']", "match.mode=sample",
@@ -75,6 +80,9 @@ def test_registry_errors():
     with pytest.raises(BackendUnavailable, match=r"pip install 'coastforge\[extra\]'"):
         registry.require("no_such_module_xyz", "extra", "a test")
     assert all(registry.default_name(s) for s in ("segment", "terrain", "detect", "embed"))
+    cfg = Config()  # `coastforge backends` marks the config's defaults
+    assert [registry.default_name(s) for s in ("segment", "terrain", "detect", "embed")] == [
+        cfg.segment.backend, cfg.terrain.backend, cfg.detect.backend, cfg.library.embedder]
 
 
 def test_cli_help_fast_and_without_heavy_imports():

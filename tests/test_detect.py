@@ -19,6 +19,7 @@ from coastforge.types import Detection, GeoImage, Grid
 
 GSD = 0.2
 WATER = (45, 62, 44)
+CLASSICAL = DetectConfig(backend="classical")  # the default is the hybrid detector
 
 
 def boat_polygon(cx, cy, yaw, length, width):
@@ -74,7 +75,7 @@ def scene():
 @pytest.fixture(scope="module")
 def dets(scene):
     image, _t, _c = scene
-    return detect(image, DetectConfig())
+    return detect(image, CLASSICAL)
 
 
 def test_classical_finds_boats_with_axis_and_heading(scene, dets):
@@ -246,19 +247,19 @@ def test_real_marina_smoke(shared_data):
 
 
 def test_class_map_water_is_used(scene):
-    """With a class map the water comes from it: marking everything land leaves no boats or piers."""
+    """Classical: with a class map the water comes from it: marking everything land leaves no boats or piers."""
     from coastforge.classes import ASPHALT, WATER as WATER_ID
     from coastforge.types import ClassMap
 
     image, truth, _cars = scene
     ids = np.full(image.rgb.shape[:2], WATER_ID, np.uint8)
     ids[480:] = ASPHALT
-    with_map = detect(image, DetectConfig(), class_map=ClassMap(ids=ids, grid=image.grid))
+    with_map = detect(image, CLASSICAL, class_map=ClassMap(ids=ids, grid=image.grid))
     assert sum(d.category == "boat" for d in with_map) == len(truth)
     land = ClassMap(ids=np.full_like(ids, ASPHALT), grid=image.grid)
-    assert not any(d.category in ("boat", "pier_walkway") for d in detect(image, DetectConfig(), class_map=land))
+    assert not any(d.category in ("boat", "pier_walkway") for d in detect(image, CLASSICAL, class_map=land))
     with pytest.raises(InputError, match="class map shape"):
-        detect(image, DetectConfig(), class_map=ClassMap(ids=ids[:10], grid=image.grid))
+        detect(image, CLASSICAL, class_map=ClassMap(ids=ids[:10], grid=image.grid))
 
 
 def test_detection_bench_reports_images_a_backend_cannot_run_as_na(tmp_path, capsys):

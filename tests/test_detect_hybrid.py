@@ -12,17 +12,17 @@ from coastforge.io import read_image
 
 
 def test_default_preset_uses_hybrid():
-    assert load_config().detect.backend == "hybrid"
-    assert load_config().detect.hybrid_union  # with the checked classical boats
+    assert load_config().detect.backend == DetectConfig().backend == "hybrid"
+    assert load_config().detect.hybrid_union and DetectConfig().hybrid_union  # with the checked classical boats
 
 
 def test_hybrid_finds_boats_and_piers_on_a_rendered_level(tmp_path):
     r = synth_to_dir("simple_pier_a", 7, tmp_path / "lvl", gsds=(0.2,), size_m=80.0)
     img = read_image(r.image_paths[0], gsd_m=0.2)
-    dets = detect(img, DetectConfig(), backend="hybrid")
+    dets = detect(img, DetectConfig(hybrid_union=False), backend="hybrid")
     cats = {d.category for d in dets}
     assert "boat" in cats or "vehicle" in cats
-    union = detect(img, DetectConfig(hybrid_union=True), backend="hybrid")
+    union = detect(img, DetectConfig(), backend="hybrid")  # the default: with the checked classical boats
     assert len([d for d in union if d.category == "boat"]) >= len([d for d in dets if d.category == "boat"])
 
 
@@ -31,7 +31,7 @@ def test_hybrid_falls_back_to_classical_outside_the_learned_gsd_range():
 
     rgb = np.full((64, 64, 3), (20, 60, 90), np.uint8)
     img = GeoImage(rgb, Grid(64, 64, 8.0))
-    assert detect(img, DetectConfig(), backend="hybrid") == detect(img, DetectConfig(), backend="classical")
+    assert detect(img, DetectConfig()) == detect(img, DetectConfig(), backend="classical")  # hybrid, the default
 
 
 def test_union_keeps_classical_boats_only_where_the_net_sees_one():

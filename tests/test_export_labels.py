@@ -90,14 +90,13 @@ def test_instances_table_labels_ids_and_floating():
 
 @pytest.fixture(scope="module")
 def generated(tmp_path_factory):
-    """``generate --export ue5,holoocean,gltf,usd,sdf`` on a small synthetic harbour. (The 60 m crop of
-    test_pipeline_generate has too little water for the classical segmenter to find any, so the HoloOcean
-    export would rightly refuse it; 100 m of the same preset has boats, a buoy, cars and a pier.)"""
+    """``generate --export ue5,holoocean,gltf,usd,sdf`` (the default pipeline) on 100 m of a synthetic
+    harbour with boats, a buoy, parked cars and piers, all of which it finds."""
     from coastforge.pipeline import GenerateRequest, run_generate
     from coastforge.synth import synth_to_dir
 
     d = tmp_path_factory.mktemp("level")
-    synth_to_dir("simple_pier_a", 2, d, gsds=(0.25,), size_m=100, overwrite=True)
+    synth_to_dir("pier_parking", 1, d, gsds=(0.25,), size_m=100, overwrite=True)
     out = tmp_path_factory.mktemp("gen")
     res = run_generate(GenerateRequest(image=str(d / "image_0.25m.png"), out=str(out), gsd_m=0.25, report=False,
                                        overwrite=True, exports=ALL), Config())

@@ -15,6 +15,8 @@ from coastforge.errors import BackendUnavailable, InputError, OutputExistsError
 from coastforge.fsio import read_png, write_png
 from coastforge.types import Detection, GeoImage, Grid
 
+CLASSICAL = SegmentConfig(backend="classical")  # the default is the learned segmenter
+
 
 def scene_image(seed: int = 0, size: int = 240, gsd: float = 0.5):
     """A tiny coast: blue water on the right (with a white boat), grass top-left, asphalt bottom-left,
@@ -50,7 +52,7 @@ def test_classical_water_land_and_boat():
     from coastforge.segmentation import segment
 
     image, truth, boat = scene_image()
-    cm = segment(image, SegmentConfig())
+    cm = segment(image, CLASSICAL)
     assert cm.ids.shape == truth.shape and cm.ids.dtype == np.uint8
     assert iou(cm.ids == WATER, truth == WATER) > 0.97
     assert (cm.ids[boat] == WATER).mean() > 0.95  # the boat is not land
@@ -63,11 +65,11 @@ def test_classical_is_deterministic_and_handles_land_only():
     from coastforge.segmentation import segment
 
     image, _t, _b = scene_image(seed=3)
-    a = segment(image, Config(seed=5)).ids
-    b = segment(image, Config(seed=5)).ids
+    a = segment(image, Config(seed=5, segment=CLASSICAL)).ids
+    b = segment(image, Config(seed=5, segment=CLASSICAL)).ids
     assert np.array_equal(a, b)
     land = GeoImage(rgb=image.rgb[:, :100].copy(), grid=Grid(100, image.grid.height_px, 0.5))
-    ids = segment(land, SegmentConfig()).ids
+    ids = segment(land, CLASSICAL).ids
     assert (ids == WATER).mean() < 0.02
 
 
@@ -77,7 +79,7 @@ def test_classical_open_water_of_any_usual_colour(rgb):
     from coastforge.segmentation import segment
 
     img = np.clip(np.asarray(rgb, np.float32) + np.random.default_rng(1).normal(0, 0.7, (160, 160, 1)), 0, 255)
-    cm = segment(GeoImage(rgb=img.astype(np.uint8), grid=Grid(160, 160, 0.5)), SegmentConfig())
+    cm = segment(GeoImage(rgb=img.astype(np.uint8), grid=Grid(160, 160, 0.5)), CLASSICAL)
     assert (cm.ids == WATER).mean() > 0.99
 
 
@@ -87,9 +89,9 @@ def test_classical_rejects_options_and_bad_backend():
 
     image, _t, _b = scene_image()
     with pytest.raises(InputError, match="takes no options"):
-        segment(image, SegmentConfig(), weights="x.onnx")
+        segment(image, CLASSICAL, weights="x.onnx")
     with pytest.raises(ConfigError, match="valid backends"):
-        segment(image, SegmentConfig(), backend="nope")
+        segment(image, CLASSICAL, backend="nope")
 
 
 # ---------------------------------------------------------------------------------------------- outputs
@@ -455,7 +457,7 @@ def test_classical_car_row_is_pavement_and_canopy_stays_trees():
     from coastforge.segmentation import segment
 
     image, cars, canopy = parking_image(seed=1)
-    ids = segment(image, SegmentConfig()).ids
+    ids = segment(image, CLASSICAL).ids
     assert (ids[cars] == TREES).mean() < 0.1  # dark cars are not crowns
     assert (ids[cars] == ASPHALT).mean() > 0.7  # the terrain under parked cars is pavement
     assert (ids[canopy] == TREES).mean() > 0.7

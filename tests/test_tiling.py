@@ -9,7 +9,7 @@ import pytest
 
 from coastforge import tiling
 from coastforge.classes import ASPHALT, GRASS, WATER
-from coastforge.config import Config, TerrainConfig
+from coastforge.config import Config, DetectConfig, SegmentConfig, TerrainConfig
 from coastforge.errors import ConfigError, InputError
 from coastforge.frames import yaw_from_direction_px
 from coastforge.fsio import write_png
@@ -168,7 +168,7 @@ def test_segment_tiled_equals_untiled_for_a_local_segmenter(scene_png, tmp_path)
 def test_segment_tiled_classical_agrees_away_from_seams(scene_png):
     from coastforge.segmentation import segment
 
-    cfg = Config()
+    cfg = Config(segment=SegmentConfig(backend="classical"))
     img = read_image(scene_png, gsd_m=0.2)
     full = segment(img, cfg.segment, seed=0).ids
     ids = tiling.segment_tiled(scene_png, Grid(600, 600, 0.2), cfg.segment, TILE, OVERLAP, seed=0)
@@ -272,7 +272,7 @@ def test_grouped_fragment_merge_equals_the_global_merge():
 def test_detect_tiled_classical_finds_the_same_boats(scene_png):
     from coastforge.detection import detect
 
-    cfg = Config()
+    cfg = Config(detect=DetectConfig(backend="classical"))
     img = read_image(scene_png, gsd_m=0.2)
     water = (local_segmenter(img, 0).ids == WATER)
     ids = np.where(water, WATER, ASPHALT).astype(np.uint8)

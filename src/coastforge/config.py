@@ -38,7 +38,10 @@ class IOConfig:
 
 @dataclass(frozen=True)
 class SegmentConfig:
-    backend: str = "classical"
+    # learned: the small U-Net trained on our renders for land classes + the classical water model; it checks
+    # itself against the classical colour rules and falls back to "classical" on photos unlike our renders
+    # (and outside 0.04-0.6 m/px); "classical": colour rules only, no network
+    backend: str = "learned"
     smooth_px: int = 3  # majority filter radius in pixels
     min_region_m2: float = 20.0  # smaller land patches merge into their surroundings (a small tree crown is ~20 m2)
     weight_blur_m: float = 1.0  # softened borders of the paint-layer weight maps
@@ -89,8 +92,10 @@ class TerrainConfig:
 
 @dataclass(frozen=True)
 class DetectConfig:
-    backend: str = "classical"
-    hybrid_union: bool = False  # hybrid backend: also keep classical boats no learned box overlaps
+    # hybrid: learned boats/vehicles/buoys + classical piers (+ checked classical boats, hybrid_union);
+    # "learned": the net alone; "classical": no network
+    backend: str = "hybrid"
+    hybrid_union: bool = True  # hybrid backend: also keep classical boats no learned box overlaps
     hybrid_support: float = 0.1  # ... only where the net's boat score reaches this (0: keep them all)
     # learned and hybrid backends: each confident boat's axis averaged with the network's on its crop turned
     # by 90, 180 and 270° (see ``LearnedDetector.tta_axes``); False: the one pass's axis

@@ -32,9 +32,10 @@ _P = "coastforge."
 BACKENDS: tuple[BackendSpec, ...] = (
     # segmentation
     BackendSpec("segment", "classical", _P + "segmentation.classical:ClassicalSegmenter", (), None, "",
-                "colour indices, texture, superpixels, self-trained per-image classifier", True),
+                "colour indices, texture, self-trained per-image classifier"),
     BackendSpec("segment", "learned", _P + "segmentation.learned:LearnedSegmenter", ("onnxruntime",), None, "",
-                "small U-Net trained by coastforge on its own renders (shipped ONNX)"),
+                "small U-Net trained by coastforge on its own renders (shipped ONNX), fused with the classical "
+                "segmenter", True),
     BackendSpec("segment", "labels", _P + "segmentation.labels:LabelsSegmenter", (), None,
                 "--labels FILE and a mapping file", "your own class raster, mapped to our classes"),
     BackendSpec("segment", "onnx", _P + "segmentation.onnx_backend:OnnxSegmenter", ("onnxruntime",), None,
@@ -48,9 +49,9 @@ BACKENDS: tuple[BackendSpec, ...] = (
                 "--weights model.onnx", "a learned height model in ONNX"),
     # detection
     BackendSpec("detect", "classical", _P + "detection.classical:ClassicalDetector", (), None, "",
-                "boats, vehicles and piers from colour, contrast and shape; heading from silhouette", True),
+                "boats, vehicles and piers from colour, contrast and shape; heading from silhouette"),
     BackendSpec("detect", "hybrid", _P + "detection.hybrid:HybridDetector", ("onnxruntime",), None, "",
-                "learned boats/vehicles/buoys + classical piers (the generate default)"),
+                "learned boats/vehicles/buoys + classical piers", True),
     BackendSpec("detect", "learned", _P + "detection.learned:LearnedDetector", ("onnxruntime",), None, "",
                 "coastforge's own small network trained on synthetic renders (ONNX, shipped)"),
     BackendSpec("detect", "yolo", _P + "detection.yolo:YoloDetector", ("ultralytics", "torch"), "yolo",

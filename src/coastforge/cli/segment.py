@@ -12,7 +12,8 @@ from .options import overwrite_option, pass_config, size_options, staged
 @size_options
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Output folder: classes.png, classes_preview.png, weights/, biome.png, biome.json.")
-@click.option("--backend", default=None, help="classical (default), labels, onnx or gemini; see `coastforge backends`.")
+@click.option("--backend", default=None,
+              help="learned (default), classical, labels, onnx or gemini; see `coastforge backends`.")
 @click.option("--labels", type=click.Path(dir_okay=False), default=None,
               help="labels backend: your class raster (PNG or GeoTIFF).")
 @click.option("--mapping", type=click.Path(dir_okay=False), default=None,

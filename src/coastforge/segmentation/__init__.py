@@ -46,7 +46,7 @@ def check_class_map(cm: ClassMap, image: GeoImage, backend: str) -> ClassMap:
 
 def segment(image: GeoImage, config: SegmentConfig | Config | None = None, backend: str | None = None,
             seed: int | None = None, **options: Any) -> ClassMap:
-    """Segment ``image`` with ``backend`` (default: ``config.backend``, normally ``classical``).
+    """Segment ``image`` with ``backend`` (default: ``config.backend``, normally ``learned``).
 
     ``config`` may be the stage's ``SegmentConfig`` or the whole ``Config`` (then its root seed is used
     unless ``seed`` is given). ``options`` go to the backend (e.g. ``labels=``, ``mapping=`` for

@@ -117,7 +117,7 @@ class GeminiSegmenter:
         if not key:
             raise BackendUnavailable(
                 "the gemini backend needs an API key: set GEMINI_API_KEY (or GOOGLE_API_KEY), "
-                "or use the offline default --backend classical"
+                "or use an offline backend: --backend learned (the default) or classical"
             )
         genai = require("google.genai", "gemini", "the gemini segmenter")
         self.client = genai.Client(api_key=key)
