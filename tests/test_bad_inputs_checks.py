@@ -51,7 +51,7 @@ def _no_output(out):
     (["detect.backend=magic"], None, "detect.backend = 'magic' is not a known detect backend; valid: classical"),
     (["export.formats=['gltf','fbx']"], None, "export.formats = 'fbx' is not a known export format"),
     (["library.embed_scales=[1.0,-2.0]"], None, "library.embed_scales = (1.0, -2.0) must be a list whose every item"),
-    (["render.sun_elevation_deg=120"], None, "render.sun_elevation_deg = 120.0 must be between 0.0 and 90.0"),
+    (["detect.snap_deg=120"], None, "detect.snap_deg = 120.0 must be between 0.0 and 90.0"),
     (["io.max_memory_gb=0"], None, "io.max_memory_gb = 0.0 must be > 0"),
     (["seed=-3"], None, "seed = -3 must be between 0 and 9223372036854775807"),
     ([], -1, "seed = -1 must be between 0 and 9223372036854775807; fix it with --seed N"),
@@ -67,7 +67,7 @@ def test_config_values_checked_when_built(sets, seed, phrase):
 @pytest.mark.parametrize("section,key,value,phrase", [
     ("terrain", "depth_scale_m", 0.0, "terrain.depth_scale_m = 0.0 must be > 0"),
     ("vegetation", "bush_density_per_100m2", float("nan"), "must be a finite number"),
-    ("match", "k", 0, "match.k = 0 must be > 0"),
+    ("match", "scale_max", 0.0, "match.scale_max = 0.0 must be > 0"),
 ])
 def test_validate_config_on_a_config_built_in_code(section, key, value, phrase):
     cfg = dataclasses.replace(Config(), **{section: dataclasses.replace(getattr(Config(), section), **{key: value})})
@@ -81,8 +81,8 @@ def test_every_preset_and_the_defaults_are_valid():
     assert validate_config(Config()) == Config()
     for name in preset_names():
         load_config(name)
-    # negative where documented: <= 0 turns the heading prior's scaling off; azimuths wrap
-    load_config(sets=["match.heading_prior_ref_px=-1", "render.sun_azimuth_deg=-45"])
+    # negative where documented: <= 0 turns the heading prior's scaling off
+    load_config(sets=["match.heading_prior_ref_px=-1"])
 
 
 @pytest.mark.parametrize("args,phrase", [

@@ -36,7 +36,7 @@ def test_config_defaults_presets_and_sets(tmp_path):
 
 
 @pytest.mark.parametrize("item,msg", [
-    ("terrain.nope=1", "unknown config key 'terrain.nope'"),
+    ("terrain.nope=1", "unknown config key 'terrain.nope'; valid keys here: backend, .*; fix the name in --set"),
     ("terrain.max_depth_m=deep", "must be of type float"),
     ("vegetation.enabled=3", "must be of type bool"),
     ("noequals", "must look like section.key=value"),
@@ -45,6 +45,20 @@ def test_config_defaults_presets_and_sets(tmp_path):
 def test_config_errors(item, msg):
     with pytest.raises(ConfigError, match=msg):
         load_config(sets=[item])
+
+
+@pytest.mark.parametrize("item,key", [
+    ("render.glint=0.5", "render"), ("segment.superpixel_m=3", "segment.superpixel_m"), ("match.k=5", "match.k"),
+])
+def test_removed_config_keys_say_so(tmp_path, item, key):
+    """Keys nothing read were removed: --set or a TOML file naming one stops with what to do."""
+    with pytest.raises(ConfigError, match=rf"config key '{key}' was removed: .*; delete it from --set or the config"):
+        load_config(sets=[item])
+    f = tmp_path / "old.toml"
+    section, _, name = item.partition("=")[0].rpartition(".")
+    f.write_text(f"[{section}]\n{name} = {item.partition('=')[2]}\n")
+    with pytest.raises(ConfigError, match=f"config key '{key}' was removed"):
+        load_config(path=f)
 
 
 def test_config_unknown_preset():

@@ -45,7 +45,6 @@ class SegmentConfig:
     smooth_px: int = 3  # majority filter radius in pixels
     min_region_m2: float = 20.0  # smaller land patches merge into their surroundings (a small tree crown is ~20 m2)
     weight_blur_m: float = 1.0  # softened borders of the paint-layer weight maps
-    superpixel_m: float = 2.0  # SLIC superpixel size
     self_training: bool = True
     work_gsd_m: float = 0.4  # classical works at this resolution (or the image's, if coarser), then upsamples
     max_work_px: int = 600_000  # cap on the working raster size (speed)
@@ -193,7 +192,6 @@ class LibraryConfig:
 @dataclass(frozen=True)
 class MatchConfig:
     mode: str = "best"  # best | sample
-    k: int = 10
     size_weight: float = 0.5  # how much the metric size counts against appearance
     sample_margin: float = 0.03  # sample among candidates within this similarity of the best
     scale_mode: str = "uniform"  # uniform | per_axis
@@ -249,15 +247,6 @@ class VegetationConfig:
 
 
 @dataclass(frozen=True)
-class RenderConfig:
-    sun_azimuth_deg: float = 135.0
-    sun_elevation_deg: float = 55.0
-    shadow_softness: float = 0.6
-    water_turbidity: float = 0.4
-    glint: float = 0.3
-
-
-@dataclass(frozen=True)
 class ExportConfig:
     formats: tuple[str, ...] = ("ue5", "holoocean", "gltf")
     template_level: str = "/Game/HoloOcean/Maps/CoastforgeTemplate"
@@ -284,7 +273,6 @@ class Config:
     match: MatchConfig = field(default_factory=MatchConfig)
     piers: PierConfig = field(default_factory=PierConfig)
     vegetation: VegetationConfig = field(default_factory=VegetationConfig)
-    render: RenderConfig = field(default_factory=RenderConfig)
     export: ExportConfig = field(default_factory=ExportConfig)
 
     def to_dict(self) -> dict[str, Any]:
@@ -332,13 +320,29 @@ def _apply(cls: type, base: Any, data: dict, prefix: str) -> Any:
     for k, v in data.items():
         key = f"{prefix}{k}"
         if k not in names:
-            raise ConfigError(f"unknown config key {key!r}; valid keys here: {', '.join(sorted(names))}")
+            raise _unknown_key(key, names)
         tp = hints[k]
         if dataclasses.is_dataclass(tp):
             changes[k] = _apply(tp, getattr(base, k), v, key + ".")
         else:
             changes[k] = _coerce(v, tp, key)
     return dataclasses.replace(base, **changes)
+
+
+# keys that were accepted once and read by nothing: removed, with a word on why instead of a bare "unknown"
+REMOVED_KEYS = {
+    "render": "nothing read it (`coastforge render` takes its lighting from --sun-azimuth and --sun-elevation)",
+    "segment.superpixel_m": "the classical segmenter uses no superpixels",
+    "match.k": "the matcher scores every asset of the detected category",
+}
+
+
+def _unknown_key(key: str, names: set[str]) -> ConfigError:
+    why = REMOVED_KEYS.get(key)
+    if why:
+        return ConfigError(f"config key {key!r} was removed: {why}; delete it from --set or the config file")
+    return ConfigError(f"unknown config key {key!r}; valid keys here: {', '.join(sorted(names))}; fix the name "
+                       "in --set or the config file")
 
 
 def preset_names() -> list[str]:
@@ -444,7 +448,7 @@ def with_seed(cfg: Config, seed: Any) -> Config:
 
 _POSITIVE = frozenset({  # divisors, sizes and scales: 0 would divide by zero or make an empty raster
     "io.max_pixels", "io.min_gsd_m", "io.max_gsd_m", "io.max_memory_gb",
-    "segment.superpixel_m", "segment.work_gsd_m", "segment.max_work_px",
+    "segment.work_gsd_m", "segment.max_work_px",
     "terrain.max_depth_m", "terrain.depth_scale_m", "terrain.berth_depth_m", "terrain.quay_height_m",
     "terrain.d50_mm", "terrain.beach_height_m", "terrain.revetment_slope", "terrain.bank_slope",
     "terrain.beach_slope", "terrain.revetment_height_m", "terrain.revetment_toe_m", "terrain.bank_height_m",
@@ -455,7 +459,7 @@ _POSITIVE = frozenset({  # divisors, sizes and scales: 0 would divide by zero or
     "detect.finger_max_width_m", "detect.vehicle_hat_m", "detect.vehicle_dc", "detect.vehicle_pitch_m",
     "library.view_gsd_m", "library.view_size_px", "library.lightings", "library.embed_scales",
     "library.query_view_gsds_m", "library.query_view_max_px", "library.crowded_gsds_m",
-    "match.k", "match.scale_min", "match.scale_max", "match.shape_scale_sigma_boat",
+    "match.scale_min", "match.scale_max", "match.shape_scale_sigma_boat",
     "match.shape_scale_sigma_vehicle", "match.shape_scale_sigma_buoy", "match.shape_length_sigma",
     "match.shape_width_sigma",
     "export.gltf_max_vertices", "export.ue_max_size", "export.ticks_per_sec", "export.sdf_heightmap_max",
@@ -466,7 +470,6 @@ _FRACTIONS = frozenset({  # scores, thresholds, IoUs, fractions and blend weight
     "io.gsd_tolerance", "detect.hybrid_support", "detect.min_score", "detect.nms_iou", "detect.vehicle_max_wet",
     "detect.boat_core_headroom", "detect.vehicle_ground_frac", "match.sample_margin",
     "match.shape_offset_weight_fine", "match.shape_offset_weight_coarse",
-    "render.shadow_softness", "render.water_turbidity", "render.glint",
 })
 
 _RANGES: dict[str, tuple[float, float]] = {  # inclusive; these replace the ">= 0" rule
@@ -474,8 +477,6 @@ _RANGES: dict[str, tuple[float, float]] = {  # inclusive; these replace the ">= 
     "segment.learned_flips": (1, 4),  # as is, mirrored, flipped, both
     "detect.snap_deg": (0.0, 90.0),
     "vegetation.max_slope_deg_trees": (0.0, 90.0),
-    "render.sun_azimuth_deg": (-360.0, 360.0),  # an angle: negative is as good as positive
-    "render.sun_elevation_deg": (0.0, 90.0),
     "match.heading_prior_ref_px": (-math.inf, math.inf),  # documented: <= 0 means no scaling
     "segment.smooth_px": (0, 255),  # a majority filter radius; OpenCV's box filters take no more
     "library.view_size_px": (8, 8192),  # what the view renderer draws
