@@ -756,3 +756,48 @@ def test_changing_a_key_changes_what_reads_it(key, world):
     same = _run(probe, base, world) == _run(probe, changed, world)
     assert not same, f"{key}: {default!r} -> {probe.value!r} changed nothing {probe.fn.__name__} returns"
 
+
+# ------------------------------------------------------------------------------------ config.library
+
+# a starter kit quick to build: one lighting, no paints, query-like views at one scale, built in this process
+SMALL_KIT = dict(lightings=1, paint_variants=False, query_view_gsds_m=(0.2,), crowded_views=0,
+                 query_view_random_lightings=0, workers=1)
+
+
+def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, monkeypatch):
+    """Without --library, generate matches against the starter kit built with ``config.library``: in its
+    threads and in its side process (which would build a kit of its own from other settings)."""
+    from coastforge import pipeline
+    from coastforge.assets.library import _config_dict
+    from coastforge.config import LibraryConfig
+    from coastforge.pipeline import GenerateRequest, run_generate
+
+    monkeypatch.setenv("COASTFORGE_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(pipeline, "SIDE_PROCESS_MIN_PX", 0)
+    cfg = replace(Config(), library=LibraryConfig(**SMALL_KIT))
+    for side in (False, True):
+        req = GenerateRequest(str(world.image_path), str(tmp_path / f"out{side}"), gsd_m=GSD, report=False,
+                              side_process=side)
+        res = run_generate(req, cfg)
+        assert res.n_objects.get("boat")
+    kits = [json.loads(p.read_text()) for p in (tmp_path / "cache").glob("kit-*/library.json")]
+    assert [k["config"] for k in kits] == [_config_dict(cfg.library)]
+
+
+def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):
+    """A user library lacking a category borrows it from the kit built with ``config.library``; the report of
+    a scene rebuilt later opens the kit its run used (from the scene's provenance)."""
+    from coastforge import pipeline
+    from coastforge.assets import library as lib_mod
+    from coastforge.config import LibraryConfig
+    from coastforge.report import _library_config
+
+    asked = []
+    monkeypatch.setattr(lib_mod, "default_library", lambda config=LibraryConfig(): asked.append(config) or "kit")
+    small = LibraryConfig(**SMALL_KIT)
+    only_boats = type("Lib", (), {"assets": [type("A", (), {"category": "boat"})()]})()
+    assert pipeline.fallback_kit(only_boats, "my_lib", small)[0] == "kit" and asked == [small]
+    assert pipeline._load_library(None, small) == "kit" and asked == [small, small]
+    prov = {"config": Config(library=small).to_dict()}
+    assert _library_config(prov) == small
+    assert _library_config({}) == _library_config({"config": {"library": {"view_size_px": "big"}}}) == LibraryConfig()

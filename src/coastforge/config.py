@@ -163,6 +163,8 @@ class DetectConfig:
 
 @dataclass(frozen=True)
 class LibraryConfig:
+    # how `library build` and the starter kit generate uses (built once per setting, cached) render and embed
+    # assets; a library given with --library keeps the settings it was built with
     embedder: str = "default"
     view_gsd_m: float = 0.05  # base metres per pixel of the views; each asset uses base x 2^k so it fits
     view_size_px: int = 128

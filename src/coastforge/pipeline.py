@@ -23,7 +23,7 @@ import numpy as np
 
 from . import __version__
 from .classes import PAVED, WATER
-from .config import Config
+from .config import Config, LibraryConfig
 from .fsio import atomic_write_text
 from .scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
 from .types import ClassMap, Detection, GeoImage
@@ -133,15 +133,17 @@ def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: fl
     return ClassMap(ids, class_map.grid, class_map.proba, class_map.confidence, class_map.source)
 
 
-def _load_library(path: str | None):
+def _load_library(path: str | None, config: LibraryConfig = LibraryConfig()):
+    """The library at ``path``, else the starter kit built with ``config`` (a built library keeps its own)."""
     from .assets import library as lib_mod
 
-    return lib_mod.Library.load(path) if path else lib_mod.default_library()
+    return lib_mod.Library.load(path) if path else lib_mod.default_library(config)
 
 
-def fallback_kit(library, path: str | None):
+def fallback_kit(library, path: str | None, config: LibraryConfig = LibraryConfig()):
     """``(starter kit, categories it stands in for)`` when the user's library (``path``) lacks asset
-    categories a scene may need, else ``(None, ())``: a missing category never aborts a run."""
+    categories a scene may need, else ``(None, ())``: a missing category never aborts a run. The kit is
+    built with ``config``."""
     from .classes import ASSET_CATEGORIES
 
     if path is None:
@@ -152,7 +154,7 @@ def fallback_kit(library, path: str | None):
         return None, ()
     from .assets.library import default_library
 
-    return default_library(), missing
+    return default_library(config), missing
 
 
 def fallback_warning(path: str | None, missing: tuple[str, ...]):
@@ -379,7 +381,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     # is done.
     # threads that wait on the side process hold a worker: room for those and the CPU-bound jobs
     with _Background(workers=8) as bg:
-        bg.submit("library", _load_library, req.library)
+        bg.submit("library", _load_library, req.library, config.library)
         with timer.stage("segment"):
             class_map = segment(image, config.segment, seed=seed)
         with timer.stage("detect"):
@@ -391,7 +393,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             if side is not None:  # then the side process loads the library its matching will need
                 def side_library():
                     bg.result("library")  # built first (a first run builds the starter kit)
-                    side.submit(_preload_library, req.library)
+                    side.submit(_preload_library, req.library, config.library)
 
                 bg.submit("side_library", side_library)
             dets, class_map, consistency = detect(image, config.detect, class_map=class_map, seed=seed,
@@ -403,10 +405,11 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             class_map = fill_under_objects(class_map, dets)
         if side is not None:  # matching is mostly Python: in the side process it leaves the GIL to the chain
             bg.result("library")  # the side process loads the library only once this one has it (built)
-            bg.submit("match", side.run, _match_job, req.library, image, dets, config.match, seed)
+            bg.submit("match", side.run, _match_job, req.library, image, dets, config.match, seed, config.library)
         else:
-            bg.submit("match", lambda: match_detections(image, dets, bg.result("library"), config.match, seed,
-                                                        fallback=fallback_kit(bg.result("library"), req.library)[0]))
+            bg.submit("match", lambda: match_detections(
+                image, dets, bg.result("library"), config.match, seed,
+                fallback=fallback_kit(bg.result("library"), req.library, config.library)[0]))
         _write_segment_outputs(bg, out, image, class_map, dets, config, seed, side)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
@@ -416,7 +419,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             bg.submit("report_terrain", _report_terrain, class_map.ids, height.z_m, grid, seed)
         with timer.stage("library"):  # the time the chain waited for the library, not its load time
             library = bg.result("library")
-            kit, missing = fallback_kit(library, req.library)
+            kit, missing = fallback_kit(library, req.library, config.library)
             if missing:
                 warnings.append(fallback_warning(req.library, missing))
         with timer.stage("piers"):
@@ -632,30 +635,31 @@ def _side_warm_up() -> None:
 _HERE: dict = {}  # the side process's own library, kept between its jobs
 
 
-def _preload_library(path: str | None) -> None:
+def _preload_library(path: str | None, lib_config: LibraryConfig = LibraryConfig()) -> None:
     """Load the library into the side process ahead of its matching job."""
-    _library_here(path)
+    _library_here(path, lib_config)
 
 
-def _library_here(path: str | None):
+def _library_here(path: str | None, lib_config: LibraryConfig = LibraryConfig()):
     """The library in this process: loaded once in the side process (which lives for one run only); loaded
     afresh in the main process (where it runs only when the side process died)."""
     import multiprocessing
 
     if multiprocessing.parent_process() is None:
-        return _load_library(path)
-    key = str(path or "")
+        return _load_library(path, lib_config)
+    key = (str(path or ""), lib_config)
     if key not in _HERE:
-        _HERE[key] = _load_library(path)
+        _HERE[key] = _load_library(path, lib_config)
     return _HERE[key]
 
 
-def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection], config, seed: int) -> list:
+def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection], config, seed: int,
+               lib_config: LibraryConfig = LibraryConfig()) -> list:
     """``match_detections`` where the library is this process's (a module-level function for the side process)."""
     from .matching import match_detections
 
-    lib = _library_here(library_path)
-    return match_detections(image, dets, lib, config, seed, fallback=fallback_kit(lib, library_path)[0])
+    lib = _library_here(library_path, lib_config)
+    return match_detections(image, dets, lib, config, seed, fallback=fallback_kit(lib, library_path, lib_config)[0])
 
 
 def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:

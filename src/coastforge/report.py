@@ -184,6 +184,18 @@ def match_objects_to_decisions(objects: list[SceneObject], matches: list[dict]) 
     return out
 
 
+def _library_config(provenance: dict):
+    """The scene's ``config.library`` (the defaults when it has none or one this version cannot read)."""
+    from .config import LibraryConfig, _apply
+    from .errors import ConfigError
+
+    given = (provenance.get("config") or {}).get("library") or {}
+    try:
+        return _apply(LibraryConfig, LibraryConfig(), given, "library.")
+    except ConfigError:
+        return LibraryConfig()
+
+
 class _Assets:
     """Meshes and top views of the scene's assets: its library when it can be loaded, else the starter kit."""
 
@@ -198,8 +210,8 @@ class _Assets:
 
             if lib_path and lib_path not in ("starter-kit", "kit") and Path(lib_path).is_dir():
                 self.lib = lib_mod.Library.load(lib_path)
-            else:
-                self.lib = lib_mod.default_library()
+            else:  # the starter kit as the run built it (its config.library)
+                self.lib = lib_mod.default_library(_library_config(scene.provenance))
         except Exception:  # noqa: BLE001 - the report still renders without asset pictures
             self.lib = None
         self._views: dict = {}

@@ -711,7 +711,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     # the library loads beside segmentation and detection; side rasters are written beside the later stages
     # (see pipeline.run_generate)
     with _Background() as bg:
-        bg.submit("library", _load_library, req.library)
+        bg.submit("library", _load_library, req.library, config.library)
         with timer.stage("segment"):
             ids = segment_tiled(src, config=config.segment, tile_px=tile_px, overlap_px=overlap_px, seed=seed,
                                 progress=_tile_progress(progress, "segment"))
@@ -745,7 +745,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain)
         with timer.stage("library"):  # the time the chain waited for the library
             library = bg.result("library")
-            kit, missing = fallback_kit(library, req.library)
+            kit, missing = fallback_kit(library, req.library, config.library)
             warns += [fallback_warning(req.library, missing)] if missing else []
         with timer.stage("match"):
             decisions = _match_tiled(src, dets, library, config, tile_px, kit)
