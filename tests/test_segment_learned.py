@@ -62,10 +62,25 @@ def test_tiled_inference_matches_whole(render, monkeypatch):
     rgb = cv2.resize(render[0], (200, 200), interpolation=cv2.INTER_AREA)  # 60 m at 0.3 m/px
     whole = seg.proba_small(rgb)
     monkeypatch.setattr(learned, "TILE_PX", 128)
-    monkeypatch.setattr(learned, "OVERLAP_PX", 32)
+    seg.meta = {**seg.meta, "overlap_px": 32}  # the card's overlap (deeper networks ask for more)
     tiled = seg.proba_small(rgb)
     assert np.allclose(whole.sum(2), 1.0, atol=1e-4)
     assert (whole.argmax(2) == tiled.argmax(2)).mean() > 0.95
+
+
+@pytest.mark.parametrize("arch,mult", [("unet4", 16), ("unet5", 32)])
+def test_segmenter_architectures(arch, mult):
+    torch = pytest.importorskip("torch")
+    from coastforge.train.seg_model import build_segmenter
+    from coastforge.train.seg_train import ARCH_MULTIPLE
+
+    assert ARCH_MULTIPLE[arch] == mult
+    net = build_segmenter(8, 8, arch).eval()
+    with torch.no_grad():
+        out = net(torch.zeros(1, 3, 2 * mult, 3 * mult))
+    assert tuple(out.shape) == (1, 8, 2 * mult, 3 * mult)
+    with pytest.raises(ValueError, match="arch"):
+        build_segmenter(8, 8, "unet9")
 
 
 def test_learned_errors(tmp_path):

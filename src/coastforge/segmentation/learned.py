@@ -81,6 +81,9 @@ def _tiles(n: int, tile: int, overlap: int) -> list[tuple[int, int, int, int]]:
     """1-D windows (start, stop, keep_from, keep_to) covering 0..n; each keeps its centre part."""
     if n <= tile:
         return [(0, n, 0, n)]
+    if tile <= 2 * overlap:
+        raise InputError(f"segmenter tiles of {tile} px cannot keep {overlap} px of context on each side; "
+                         "the model card's overlap_px must be less than half the tile")
     step = tile - 2 * overlap
     starts = list(range(0, n - tile, step)) + [n - tile]
     out, keep_from = [], 0
