@@ -85,19 +85,19 @@ def test_a_failing_background_job_fails_generate(level, tmp_path, monkeypatch):
 
 def test_side_process_gives_the_same_cleaned_image_and_report(level, tmp_path, monkeypatch):
     """The spawned side process (the CLI's default on big images) writes what the threads write."""
-    from coastforge import pipeline
+    from coastforge import runtime
     from coastforge.pipeline import run_generate
 
-    monkeypatch.setattr(pipeline, "SIDE_PROCESS_MIN_PX", 0)
+    monkeypatch.setattr(runtime, "SIDE_PROCESS_MIN_PX", 0)
     started = []
-    real_start = pipeline._SideProcess.start.__func__
+    real_start = runtime.SideProcess.start.__func__
 
-    def start(cls, n_px):
-        sp = real_start(cls, n_px)
+    def start(cls, n_px, warm_up=None):
+        sp = real_start(cls, n_px, warm_up)
         started.append(sp)
         return sp
 
-    monkeypatch.setattr(pipeline._SideProcess, "start", classmethod(start))
+    monkeypatch.setattr(runtime.SideProcess, "start", classmethod(start))
     a = run_generate(replace(_request(level, tmp_path / "threads"), report=True), Config())
     b = run_generate(replace(_request(level, tmp_path / "side"), report=True, side_process=True), Config())
     assert len(started) == 1 and started[0] is not None  # only the second run asked for it, and got it
@@ -118,7 +118,7 @@ def test_work_for_a_dead_side_process_is_redone_here():
     from concurrent.futures import Future
     from concurrent.futures.process import BrokenProcessPool
 
-    from coastforge.pipeline import _SideProcess
+    from coastforge.runtime import SideProcess
 
     class DeadPool:
         def submit(self, fn, *args):
@@ -126,7 +126,7 @@ def test_work_for_a_dead_side_process_is_redone_here():
             f.set_exception(BrokenProcessPool("killed (test)"))
             return f
 
-    assert _SideProcess(DeadPool()).run(divmod, 7, 2) == (3, 1)
+    assert SideProcess(DeadPool()).run(divmod, 7, 2) == (3, 1)
 
 
 def test_coarse_weight_blur_matches_the_exact_blur():
@@ -181,15 +181,35 @@ def test_low_priority_background_jobs_run_at_a_higher_nice_value():
     import os
     import threading
 
-    from coastforge.pipeline import _Background
+    from coastforge.runtime import Background, Job
 
     def nice():
         return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
 
-    with _Background() as bg:
-        bg.submit("low", nice, low=True)
-        bg.submit("normal", nice)
-        assert bg.result("low") > bg.result("normal") == os.getpriority(os.PRIO_PROCESS, 0)
+    with Background() as bg:
+        bg.submit(Job.PCG, nice, low=True)
+        bg.submit(Job.MATCH, nice)
+        assert bg.result(Job.PCG) > bg.result(Job.MATCH) == os.getpriority(os.PRIO_PROCESS, 0)
+
+
+def test_background_job_names_are_typed():
+    """A misspelt job name is an error, at submit and at result; it never waits for every job instead."""
+    from coastforge.pipeline import report_waiter
+    from coastforge.runtime import Background, Job
+
+    with Background() as bg:
+        bg.submit("cleaned", divmod, 7, 2)  # a job's own name is accepted
+        assert bg.result(Job.CLEANED) == (3, 1)
+        with pytest.raises(ValueError, match="unknown background job 'nonexistent'"):
+            bg.result("nonexistent")
+        with pytest.raises(ValueError, match="unknown background job"):
+            bg.submit("clean", divmod, 7, 2)
+        with pytest.raises(KeyError, match="was not submitted"):
+            bg.result(Job.MATCH)
+        wait = report_waiter(bg)
+        assert wait("cleaned") == (3, 1)
+        with pytest.raises(ValueError, match="the report waited for 'mesh'"):
+            wait("mesh")
 
 
 def test_fill_under_a_row_of_dark_cars_is_the_pavement_not_the_neighbours():

@@ -8,12 +8,9 @@ the scene's provenance; the folder is written stage by stage, so an interrupted 
 from __future__ import annotations
 
 import json
-import os
 import platform
 import sys
-import threading
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
@@ -25,6 +22,7 @@ from . import __version__
 from .classes import PAVED, WATER
 from .config import Config, LibraryConfig
 from .fsio import atomic_write_text
+from .runtime import Background, Job, SideProcess, Timer
 from .scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
 from .types import ClassMap, Detection, GeoImage
 
@@ -66,24 +64,6 @@ class GenerateResult:
     def scene(self) -> Scene:
         """The generated scene, read from ``scene_path`` on first use (the command only prints paths)."""
         return load_scene(self.scene_path)
-
-
-class _Timer:
-    def __init__(self, progress: Progress | None):
-        self.t: dict[str, float] = {}
-        self.cpu: dict[str, float] = {}  # the calling thread's CPU time per stage (wall minus waiting for a core)
-        self.progress = progress
-
-    @contextmanager
-    def stage(self, name: str):
-        if self.progress:
-            self.progress(name, 0.0)
-        t0, c0 = time.perf_counter(), time.thread_time()
-        yield
-        self.t[name] = round(time.perf_counter() - t0, 3)
-        self.cpu[name] = round(time.thread_time() - c0, 3)
-        if self.progress:
-            self.progress(name, 1.0)
 
 
 def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: float = 2.0) -> ClassMap:
@@ -289,9 +269,10 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
             res = tiling.generate_tiled(sreq, config, progress)
         else:
             assert image is not None
-            timer = _Timer(progress)
+            timer = Timer(progress)
             timer.t["read"], timer.cpu["read"] = round(t_read or 0.0, 3), round(t_read or 0.0, 3)
-            side = _SideProcess.start(image.grid.width_px * image.grid.height_px) if req.side_process else None
+            side = (SideProcess.start(image.grid.width_px * image.grid.height_px, _side_warm_up) if req.side_process
+                    else None)
             try:
                 res = _run_chain(sreq, config, image, stage, timer, side)
             finally:
@@ -354,8 +335,8 @@ def _relocated(res: GenerateResult, stage: Path, out: Path, notes: list[str]) ->
                    report_path=mv(res.report_path) if res.report_path else None)
 
 
-def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path, timer: _Timer,
-               side: "_SideProcess | None") -> GenerateResult:
+def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path, timer: Timer,
+               side: "SideProcess | None") -> GenerateResult:
     """The stages after reading the image (``side``: the side process, when there is one)."""
     from .detection import detect
     from .matching import match_detections
@@ -380,8 +361,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     # needed only by the report, which waits for it last; every side raster is written as soon as its stage
     # is done.
     # threads that wait on the side process hold a worker: room for those and the CPU-bound jobs
-    with _Background(workers=8) as bg:
-        bg.submit("library", _load_library, req.library, config.library)
+    with Background(workers=8) as bg:
+        bg.submit(Job.LIBRARY, _load_library, req.library, config.library)
         with timer.stage("segment"):
             class_map = segment(image, config.segment, seed=seed)
         with timer.stage("detect"):
@@ -392,10 +373,10 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                 opts["classical_dets"] = side.submit(classical_part, image, class_map, config.detect, seed)
             if side is not None:  # then the side process loads the library its matching will need
                 def side_library():
-                    bg.result("library")  # built first (a first run builds the starter kit)
+                    bg.result(Job.LIBRARY)  # built first (a first run builds the starter kit)
                     side.submit(_preload_library, req.library, config.library)
 
-                bg.submit("side_library", side_library)
+                bg.submit(Job.SIDE_LIBRARY, side_library)
             dets, class_map, consistency = detect(image, config.detect, class_map=class_map, seed=seed,
                                                   return_class_map=True, **opts)
         from .selfcheck import check_scene
@@ -404,21 +385,21 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
         with timer.stage("clean"):
             class_map = fill_under_objects(class_map, dets)
         if side is not None:  # matching is mostly Python: in the side process it leaves the GIL to the chain
-            bg.result("library")  # the side process loads the library only once this one has it (built)
-            bg.submit("match", side.run, _match_job, req.library, image, dets, config.match, seed, config.library)
+            bg.result(Job.LIBRARY)  # the side process loads the library only once this one has it (built)
+            bg.submit(Job.MATCH, side.run, _match_job, req.library, image, dets, config.match, seed, config.library)
         else:
-            bg.submit("match", lambda: match_detections(
-                image, dets, bg.result("library"), config.match, seed,
-                fallback=fallback_kit(bg.result("library"), req.library, config.library)[0]))
+            bg.submit(Job.MATCH, lambda: match_detections(
+                image, dets, bg.result(Job.LIBRARY), config.match, seed,
+                fallback=fallback_kit(bg.result(Job.LIBRARY), req.library, config.library)[0]))
         _write_segment_outputs(bg, out, image, class_map, dets, config, seed, side)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
             height: HeightMap = terrain.height
         _write_terrain_outputs(bg, out, terrain)
         if req.report:  # the report's render from above: its terrain now, while the chain waits for matching
-            bg.submit("report_terrain", _report_terrain, class_map.ids, height.z_m, grid, seed)
+            bg.submit(Job.REPORT_TERRAIN, _report_terrain, class_map.ids, height.z_m, grid, seed)
         with timer.stage("library"):  # the time the chain waited for the library, not its load time
-            library = bg.result("library")
+            library = bg.result(Job.LIBRARY)
             kit, missing = fallback_kit(library, req.library, config.library)
             if missing:
                 warnings.append(fallback_warning(req.library, missing))
@@ -438,11 +419,11 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library, kit),
                           pier_objects + detection_footprints(dets, grid), config.vegetation, seed)
         with timer.stage("match"):  # waiting for the matcher, then placement on the terrain
-            decisions = bg.result("match")
+            decisions = bg.result(Job.MATCH)
             objects = place_decisions(decisions, dets, library, grid, config, height, kit) + pier_objects
         if req.report:  # ... and the meshes it shows (loading them holds the GIL: not beside the stages above)
             plants = veg.vegetation.asset_id if veg.vegetation is not None else ()
-            bg.submit("report_meshes", _load_meshes, library, [o.asset_id for o in objects] + [str(a) for a in plants])
+            bg.submit(Job.REPORT_MESHES, _load_meshes, library, [o.asset_id for o in objects] + [str(a) for a in plants])
         with timer.stage("write"):
             # the scene rasters; the inpainted image, the segmentation rasters and the report's meshes are
             # still being made beside: the report starts on its other sections meanwhile
@@ -451,7 +432,8 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                 scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
                                  veg.vegetation, pier_report, decisions, consistency=consistency,
                                  warnings=[w.to_dict() for w in warnings]),
-                pending=("cleaned", "segmentation", "report_meshes", "scene_rasters", "pcg", "terrain_outputs"))
+                pending=(Job.CLEANED, Job.SEGMENTATION, Job.REPORT_MESHES, Job.SCENE_RASTERS, Job.PCG,
+                         Job.TERRAIN_OUTPUTS))
         timings = dict(timer.t)
         timings["total"] = round(sum(timer.t.values()), 3)
         exports: dict = {}
@@ -466,14 +448,10 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             timings["export"] = timer.t["export"]
             timings["total"] = round(timings["total"] + timings["export"], 3)
 
-        def wait(part: str):
-            job = {"meshes": "report_meshes", "cleaned": "cleaned", "terrain": "terrain_outputs",
-                   "segmentation": "segmentation"}.get(part)
-            return bg.result(job) if job else bg.wait()
-
         report_path = make_report(req, out, timings, scene=_with_timings(scene, timings, timer, bg),
                                   image=image.rgb, library=library,
-                                  top_terrain=bg.result("report_terrain") if req.report else None, wait=wait)
+                                  top_terrain=bg.result(Job.REPORT_TERRAIN) if req.report else None,
+                                  wait=report_waiter(bg))
         bg.wait()  # re-raises a failed job (without a report nothing else waited for them all)
         # the JSON last, once every file it describes is written: a folder with a scene.json is complete
         scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)
@@ -481,7 +459,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
                           report_path, warnings)
 
 
-def _with_timings(scene: Scene, timings: dict, timer: _Timer, bg: "_Background") -> Scene:
+def _with_timings(scene: Scene, timings: dict, timer: Timer, bg: "Background") -> Scene:
     """The scene with its stage timings and what ran beside the main chain (CPU contention makes the stages
     slower by about that much) in its provenance."""
     return replace(scene, provenance={**scene.provenance, "timings_s": dict(timings),
@@ -509,8 +487,8 @@ def _load_meshes(library, asset_ids) -> None:
             pass
 
 
-def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
-                      class_map: ClassMap, objects, veg, provenance: dict, pending: tuple[str, ...] = ()) -> Scene:
+def write_scene_files(bg: "Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
+                      class_map: ClassMap, objects, veg, provenance: dict, pending: tuple[Job, ...] = ()) -> Scene:
     """The scene of a finished chain; its vegetation masks and rasters written (the JSON comes last, from the
     caller, once timings are known). ``transform`` is the scene rasters' (coarser than the input when a tiled
     run downsampled them). Background jobs named in ``pending`` are not waited for (the caller does)."""
@@ -520,7 +498,7 @@ def write_scene_files(bg: "_Background", out: Path, req: GenerateRequest, seed: 
         classes=class_map.ids.astype(np.uint8), objects=tuple(objects), vegetation=veg.vegetation,
         provenance=provenance)
     _write_vegetation_outputs(bg, out, veg)
-    bg.submit("scene_rasters", save_scene_rasters, scene, out, low=True)
+    bg.submit(Job.SCENE_RASTERS, save_scene_rasters, scene, out, low=True)
     write_instances(scene, out)
     bg.wait(skip=pending)  # re-raises the first failed job
     return scene
@@ -534,6 +512,25 @@ def write_instances(scene: Scene, out: Path) -> Path:
     from .fsio import atomic_write_bytes
 
     return atomic_write_bytes(out / INSTANCES_FILE, instances_json(scene))
+
+
+# what the report waits for (``report.build_report``'s ``wait(part)``): the background job making it
+REPORT_PARTS = {"meshes": Job.REPORT_MESHES, "cleaned": Job.CLEANED, "terrain": Job.TERRAIN_OUTPUTS,
+                "segmentation": Job.SEGMENTATION}
+
+
+def report_waiter(bg: Background):
+    """``wait(part)`` for the report: the result of the part's job, or every job for "all"; another part
+    is an error (it would otherwise wait for the wrong thing, or for everything)."""
+    def wait(part: str):
+        if part == "all":
+            return bg.wait()
+        if part not in REPORT_PARTS:
+            raise ValueError(f"the report waited for {part!r}; generate makes "
+                             f"{', '.join(REPORT_PARTS)} and 'all'")
+        return bg.result(REPORT_PARTS[part])
+
+    return wait
 
 
 def make_report(req: GenerateRequest, out: Path, timings: dict, scene: Scene | None = None,
@@ -559,67 +556,6 @@ def object_counts(objects, n_vegetation: int) -> dict[str, int]:
         counts[o.category] = counts.get(o.category, 0) + 1
     counts["vegetation"] = n_vegetation
     return counts
-
-
-class _Background:
-    """A small thread pool for work beside the main chain. NumPy, OpenCV and zlib release the GIL, so on
-    two cores the side rasters are encoded while the next stage computes. ``result``/``wait`` re-raise a
-    job's exception; leaving the block waits for every job (nothing is left writing behind the caller)."""
-
-    def __init__(self, workers: int = 3, low_workers: int = 2):
-        from concurrent.futures import ThreadPoolExecutor
-
-        self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="coastforge-bg")
-        # output files nothing waits for until the end, in threads the OS runs only when a core is free of
-        # the chain's work (and the side process's): they fill its idle moments instead of slowing it
-        self._low = ThreadPoolExecutor(max_workers=low_workers, thread_name_prefix="coastforge-bg-low",
-                                       initializer=_lower_thread_priority)
-        self._jobs: dict = {}
-        self._t: dict[str, dict] = {}
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        for pool in (self._pool, self._low):
-            pool.shutdown(wait=True, cancel_futures=exc[0] is not None)
-        return False
-
-    def submit(self, name: str, fn, *args, low: bool = False, **kw) -> None:
-        """Run ``fn(*args, **kw)`` as job ``name``; ``low``: at a lower CPU priority (Linux)."""
-        def timed():
-            t0, c0 = time.perf_counter(), time.thread_time()
-            try:
-                return fn(*args, **kw)
-            finally:  # wall and this thread's CPU time: their gap is time spent waiting for a core
-                self._t[name] = {"wall": round(time.perf_counter() - t0, 3), "cpu": round(time.thread_time() - c0, 3)}
-
-        self._jobs[name] = (self._low if low else self._pool).submit(timed)
-
-    def result(self, name: str):
-        return self._jobs[name].result()
-
-    def wait(self, skip: tuple[str, ...] = ()) -> None:
-        for name, f in list(self._jobs.items()):
-            if name not in skip:
-                f.result()
-
-    def timings(self) -> dict[str, dict]:
-        return dict(sorted(self._t.items()))
-
-
-def _lower_thread_priority(nice: int = 10) -> None:
-    """Give the calling thread a higher nice value (Linux schedules threads on their own; elsewhere
-    ``setpriority`` would take the id for a process's, so nothing is done)."""
-    if sys.platform.startswith("linux") and hasattr(os, "setpriority"):
-        try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
-        except OSError:
-            pass
-
-
-# images at least this big (pixels) get a side process; below, its start-up costs more than it saves
-SIDE_PROCESS_MIN_PX = 1_500_000
 
 
 def _side_warm_up() -> None:
@@ -673,59 +609,8 @@ def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map
     return rgb
 
 
-class _SideProcess:
-    """One spawned worker process for pure-Python-heavy side work (half of the hybrid detection, the
-    matching, the inpainted image). In a thread that work would hold the GIL against the main chain; in a process it
-    runs on the other core. ``start`` gives None (run it in a thread instead) for small images, in a
-    daemonic process (which may not have children) or where processes cannot start."""
-
-    def __init__(self, pool):
-        self._pool = pool
-        self._futures: list = []
-
-    @classmethod
-    def start(cls, n_px: int) -> "_SideProcess | None":
-        import multiprocessing
-
-        if n_px < SIDE_PROCESS_MIN_PX or multiprocessing.current_process().daemon or (os.cpu_count() or 1) < 2:
-            return None
-        try:
-            from concurrent.futures import ProcessPoolExecutor
-
-            pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
-            pool.submit(_side_warm_up)
-        except (OSError, RuntimeError, ValueError):
-            return None
-        return cls(pool)
-
-    def run(self, fn, *args):
-        """``fn(*args)`` in the side process, waiting for its result (call it from a background thread); here
-        if the side process died (killed for memory, say): the work is redone rather than lost."""
-        from concurrent.futures.process import BrokenProcessPool
-
-        try:
-            return self.submit(fn, *args).result()
-        except BrokenProcessPool:
-            return fn(*args)
-
-    def submit(self, fn, *args):
-        fut = self._pool.submit(fn, *args)
-        self._futures.append(fut)
-        return fut
-
-    def close(self) -> None:
-        """Stop the side process. With every job done it is terminated rather than left to tear its
-        interpreter down (its imports and caches: time the user would wait for nothing)."""
-        procs = list((getattr(self._pool, "_processes", None) or {}).values())
-        idle = all(f.done() for f in self._futures)
-        self._pool.shutdown(wait=not idle, cancel_futures=True)
-        if idle:
-            for p in procs:
-                p.terminate()
-
-
-def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,
-                           seed: int, side: _SideProcess | None = None) -> None:
+def _write_segment_outputs(bg: Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,
+                           seed: int, side: SideProcess | None = None) -> None:
     """detections.json now; the cleaned image (transient objects removed: no later stage reads it, only the
     report) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
     from .detection import detections_to_json
@@ -734,20 +619,20 @@ def _write_segment_outputs(bg: _Background, out: Path, image: GeoImage, class_ma
     g = image.grid
     atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
     if side is not None:
-        bg.submit("cleaned", side.run, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
+        bg.submit(Job.CLEANED, side.run, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
     else:
-        bg.submit("cleaned", _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
-    bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, image, config.segment, low=True)
+        bg.submit(Job.CLEANED, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
+    bg.submit(Job.SEGMENTATION, write_segmentation, out / "segmentation", class_map, image, config.segment, low=True)
 
 
-def _write_terrain_outputs(bg: _Background, out: Path, terrain) -> None:
+def _write_terrain_outputs(bg: Background, out: Path, terrain) -> None:
     """Hillshade, shore types and cross-sections, in the background."""
     from .terrain.outputs import write_terrain_outputs
 
-    bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain, low=True)
+    bg.submit(Job.TERRAIN_OUTPUTS, write_terrain_outputs, out / "terrain_outputs", terrain, low=True)
 
 
-def _write_vegetation_outputs(bg: _Background, out: Path, veg) -> None:
+def _write_vegetation_outputs(bg: Background, out: Path, veg) -> None:
     """The 8-bit PCG masks, one file per rule."""
     from .fsio import write_png
 
@@ -755,4 +640,4 @@ def _write_vegetation_outputs(bg: _Background, out: Path, veg) -> None:
         for name, mask in veg.masks.items():
             write_png(out / "pcg" / f"{name}.png", mask)
 
-    bg.submit("pcg", masks, low=True)
+    bg.submit(Job.PCG, masks, low=True)

@@ -671,7 +671,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
     from .detection import detections_to_json
     from .fsio import atomic_write_text, write_png
-    from .pipeline import (GenerateResult, _Background, _load_library, _pier_assets, _Timer, _with_timings,
+    from .runtime import Background, Job, Timer
+    from .pipeline import (GenerateResult, _load_library, _pier_assets, _with_timings,
                            fallback_kit, fallback_warning,
                            assets_by_category, fill_under_objects, make_report, object_counts, place_decisions,
                            scene_provenance, write_scene_files)
@@ -691,7 +692,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
         raise ConfigError(f"scene_max_px = {scene_max_px!r} must be an integer ≥ 127 (e.g. 4096)")
     validate_config(config)
-    timer = _Timer(progress)
+    timer = Timer(progress)
     seed = config.seed
     with timer.stage("read"):
         src = open_source(req.image, req.gsd_m, req.size_m, config.io)
@@ -710,8 +711,8 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     out.mkdir(parents=True, exist_ok=True)
     # the library loads beside segmentation and detection; side rasters are written beside the later stages
     # (see pipeline.run_generate)
-    with _Background() as bg:
-        bg.submit("library", _load_library, req.library, config.library)
+    with Background() as bg:
+        bg.submit(Job.LIBRARY, _load_library, req.library, config.library)
         with timer.stage("segment"):
             ids = segment_tiled(src, config=config.segment, tile_px=tile_px, overlap_px=overlap_px, seed=seed,
                                 progress=_tile_progress(progress, "segment"))
@@ -737,14 +738,14 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
         warns = check_scene(class_map.ids, sgrid.gsd_m, s_dets)  # the self-check, as a whole-image run makes it
         atomic_write_text(out / "detections.json",
                           detections_to_json(dets, grid.gsd_m, (W, H), {"tiled": True, "tile_px": tile_px}))
-        bg.submit("cleaned", lambda: write_png(out / "cleaned.png", clean_image(overview, s_dets, class_map, seed)))
-        bg.submit("segmentation", write_segmentation, out / "segmentation", class_map, overview, config.segment)
+        bg.submit(Job.CLEANED, lambda: write_png(out / "cleaned.png", clean_image(overview, s_dets, class_map, seed)))
+        bg.submit(Job.SEGMENTATION, write_segmentation, out / "segmentation", class_map, overview, config.segment)
         with timer.stage("terrain"):
             terrain = estimate_terrain(class_map, config.terrain, image=overview, dems=req.dems, seed=seed)
             height: HeightMap = terrain.height
-        bg.submit("terrain_outputs", write_terrain_outputs, out / "terrain_outputs", terrain)
+        bg.submit(Job.TERRAIN_OUTPUTS, write_terrain_outputs, out / "terrain_outputs", terrain)
         with timer.stage("library"):  # the time the chain waited for the library
-            library = bg.result("library")
+            library = bg.result(Job.LIBRARY)
             kit, missing = fallback_kit(library, req.library, config.library)
             warns += [fallback_warning(req.library, missing)] if missing else []
         with timer.stage("match"):
