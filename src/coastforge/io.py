@@ -100,7 +100,8 @@ def _png_damage(fh) -> str | None:
             return None
 
 
-def _refuse_damaged(path) -> None:
+def refuse_damaged(path) -> None:
+    """Refuse a truncated or corrupt PNG or JPEG (``image_damage``) before it is read."""
     why = image_damage(path)
     if why:
         raise InputError(f"{path} is truncated or corrupt: {why}; re-export or re-download it")
@@ -172,7 +173,9 @@ def check_memory(path, width: int, height: int, gsd_m: float, cfg: IOConfig, sta
         "limit with --set io.max_memory_gb=N if this machine has the memory")
 
 
-def _open(path: Path):
+def open_image(path: Path):
+    """The image opened with rasterio, or ``InputError`` saying why it cannot be (missing, a folder, a pipe,
+    not an image)."""
     import rasterio
     from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
 
@@ -193,7 +196,8 @@ def _open(path: Path):
         ) from exc
 
 
-def _is_georeferenced(src) -> bool:
+def is_georeferenced(src) -> bool:
+    """True when an open raster has a CRS and a non-identity transform."""
     return src.crs is not None and not src.transform.is_identity
 
 
@@ -263,19 +267,11 @@ def read_image(path: str | Path, gsd_m: float | None = None, size_m: tuple[float
     ``stages`` (the run's ``Config``) makes the memory estimate count what its stages will allocate."""
     cfg = config or IOConfig()
     path = Path(path)
-    src = _open(path)
+    src = open_image(path)
     with src:
         w, h = src.width, src.height
-        if w * h > cfg.max_pixels:
-            raise InputError(
-                f"{path} claims {w}x{h} = {w * h / 1e6:.0f} Mpx, over the limit of {cfg.max_pixels / 1e6:.0f} Mpx "
-                "(a decompression bomb, or an image to run tiled); raise it with --set io.max_pixels=N if you mean it"
-            )
-        check_image_size(path, w, h)
-        check_bands(src, path)
-        if src.dtypes[0] not in ("uint8", "uint16", "float32", "float64", "int16"):
-            raise InputError(f"{path} has pixel type {src.dtypes[0]}; expected 8- or 16-bit RGB")
-        geo = _is_georeferenced(src)
+        check_header(src, path, cfg)
+        geo = is_georeferenced(src)
         if geo and src.crs.is_geographic:
             return _read_geographic(src, path, gsd_m, size_m, cfg, stages)
         geo_gsd = None
@@ -284,9 +280,28 @@ def read_image(path: str | Path, gsd_m: float | None = None, size_m: tuple[float
             geo_gsd, transform, crs = north_up_georef(src, path)
         gsd = resolve_gsd(w, h, gsd_m, size_m, geo_gsd, cfg.gsd_tolerance, str(path), (cfg.min_gsd_m, cfg.max_gsd_m))
         check_memory(path, w, h, gsd, cfg, stages, _read_bytes_per_px(src.dtypes[0]))
-        _refuse_damaged(path)
+        refuse_damaged(path)
         rgb = _to_uint8(_read_bands(src, path), path)
     return GeoImage(rgb=rgb, grid=Grid(w, h, gsd, crs, transform), path=str(path))
+
+
+PIXEL_TYPES = ("uint8", "uint16", "float32", "float64", "int16")
+
+
+def check_header(src, path, cfg: IOConfig, whole: bool = True) -> None:
+    """The checks of an open image's header, before any pixel is read: its pixel count against
+    ``io.max_pixels``, its size (``check_image_size``; ``whole``: read at once, not in tiles), its bands and
+    its pixel type."""
+    w, h = src.width, src.height
+    if w * h > cfg.max_pixels:
+        raise InputError(
+            f"{path} claims {w}x{h} = {w * h / 1e6:.0f} Mpx, over the limit of {cfg.max_pixels / 1e6:.0f} Mpx "
+            "(a decompression bomb, or an image to run tiled); raise it with --set io.max_pixels=N if you mean it"
+        )
+    check_image_size(path, w, h, whole=whole)
+    check_bands(src, path)
+    if src.dtypes[0] not in PIXEL_TYPES:
+        raise InputError(f"{path} has pixel type {src.dtypes[0]}; expected 8- or 16-bit RGB")
 
 
 def check_bands(src, path) -> None:
@@ -384,7 +399,7 @@ def _read_geographic(src, path: Path, gsd_m, size_m, cfg: IOConfig, stages=None)
     src_px = src.width * src.height / max(1, w * h)
     check_memory(path, w, h, gsd, cfg, stages,
                  _read_bytes_per_px(src.dtypes[0]) + 3 * np.dtype(src.dtypes[0]).itemsize * (1 + src_px))
-    _refuse_damaged(path)
+    refuse_damaged(path)
     dst = np.zeros((3, h, w), dtype=src.dtypes[0])
     bands = _read_bands(src, path)
     for b in range(3):

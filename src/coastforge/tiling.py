@@ -120,18 +120,12 @@ def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[floa
 
     cfg = config or IOConfig()
     path = Path(path)
-    with cio._open(path) as src:
+    with cio.open_image(path) as src:
         w, h = src.width, src.height
-        cio.check_image_size(path, w, h, whole=False)
-        if w * h > cfg.max_pixels:
-            raise InputError(f"{path} is {w}x{h} = {w * h / 1e6:.0f} Mpx, over io.max_pixels "
-                             f"({cfg.max_pixels / 1e6:.0f} Mpx); raise it with --set io.max_pixels=N if you mean it")
-        cio.check_bands(src, path)
+        cio.check_header(src, path, cfg, whole=False)
         dtype = src.dtypes[0]
-        if dtype not in ("uint8", "uint16", "float32", "float64", "int16"):
-            raise InputError(f"{path} has pixel type {dtype}; expected 8- or 16-bit RGB")
         geo_gsd = crs = transform = None
-        if cio._is_georeferenced(src):
+        if cio.is_georeferenced(src):
             if src.crs.is_geographic:
                 raise InputError(f"{path} is in a geographic CRS ({src.crs.to_string()}); a large image is read in "
                                  "tiles and cannot be reprojected on the fly: warp it to its UTM zone first "
@@ -149,7 +143,7 @@ def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[floa
                 raise InputError(f"{path} holds no finite pixel values")
             lo, hi = (float(v) for v in np.percentile(finite, [0.5, 99.5]))
             stretch = (lo, hi if hi > lo else lo + 1.0)
-    cio._refuse_damaged(path)
+    cio.refuse_damaged(path)
     return Source(str(path), Grid(w, h, gsd, crs, transform), stretch)
 
 
