@@ -399,3 +399,28 @@ def test_generate_tiled_reconciles_and_self_checks_like_a_whole_image_run(scene_
     assert ids[155:165, 160:175].tolist() == np.full((10, 15), WATER).tolist()  # the cluster, on the 300 px grid
     assert any(w["code"] for w in prov["warnings"])  # the self-check ran (a nearly single-class scene)
     assert res.warnings and res.warnings[0].message
+
+
+def test_tiled_and_whole_image_runs_share_one_stage_order(scene_png, tmp_path):
+    """The whole-image run and the tiled run are one chain (pipeline.run_chain): the same stages in the same
+    order, the same background jobs, the same provenance entries (the tiled run adds how it tiled)."""
+    import json
+
+    from coastforge.pipeline import GenerateRequest, run_generate
+
+    started: dict[str, list[str]] = {"whole": [], "tiled": []}
+
+    def record(key):
+        return lambda stage, frac: started[key].append(stage) if frac == 0.0 else None
+
+    req = GenerateRequest(image=str(scene_png), out=str(tmp_path / "whole"), gsd_m=0.2, report=False)
+    whole = run_generate(req, Config(), record("whole"))
+    tiled = tiling.generate_tiled(GenerateRequest(image=str(scene_png), out=str(tmp_path / "tiled"), gsd_m=0.2,
+                                                  report=False), Config(), record("tiled"),
+                                  tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
+    assert started["whole"] == started["tiled"]
+    assert started["whole"][:4] == ["read", "segment", "detect", "clean"]
+    assert started["whole"].index("piers") < started["whole"].index("vegetation") < started["whole"].index("match")
+    pw, pt = (json.loads(r.scene_path.read_text())["provenance"] for r in (whole, tiled))
+    assert set(pw["background_s"]) == set(pt["background_s"])
+    assert set(pt) - set(pw) == {"tiled"} and set(pw) <= set(pt)

@@ -1,8 +1,10 @@
 """``generate``: one image in, one complete scene out.
 
-read → detect → segment (transient objects and pier decks filled from their surroundings) → terrain →
-match + place → piers → vegetation → scene.json + rasters → exports. Each stage's wall time goes into
-the scene's provenance; the folder is written stage by stage, so an interrupted run keeps what it made.
+read → segment → detect (reconciled with the class map) → self-check → clean (transient objects and pier
+decks filled from their surroundings) → terrain → piers → vegetation → match + place → scene files →
+exports → report → scene.json, in one order (``run_chain``) whether the image is held whole
+(``WholeImage``) or read by windows (``tiling.TiledImage``). Each stage's wall time goes into the scene's
+provenance; side work runs beside the chain (``coastforge.runtime``).
 """
 
 from __future__ import annotations
@@ -12,9 +14,9 @@ import platform
 import sys
 import time
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -24,7 +26,7 @@ from .config import Config, LibraryConfig
 from .fsio import atomic_write_text
 from .runtime import Background, Job, SideProcess, Timer
 from .scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
-from .types import ClassMap, Detection, GeoImage
+from .types import ClassMap, Detection, GeoImage, Grid, HeightMap
 
 Progress = Callable[[str, float], None]  # (stage name, fraction done)
 
@@ -242,48 +244,30 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     """Run the whole pipeline into ``req.out``, all-or-nothing: everything is written into a staging folder
     beside it and swapped into place only once the scene, its exports and its report are complete (a
     failed or killed run leaves ``req.out`` as it was). Inputs are checked before the first write."""
-    from .config import validate_config
-    from .io import read_image
-
     from . import tiling
+    from .config import validate_config
     from .fsio import output_folder
-
-    validate_config(config)  # a Config built in code gets the checks load_config makes
-    tiled = tiling.needs_tiling(req.image)
-    check_library_path(req.library)
-    image = None
-    t_read = None
-    if not tiled:  # the image is read (and checked) before anything is written
-        t0 = time.perf_counter()
-        image = read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config)
-        t_read = time.perf_counter() - t0
-    check_dems(req, image)
     from .terrain.dem import DemSource
 
+    validate_config(config)  # a Config built in code gets the checks load_config makes
+    check_library_path(req.library)
+    timer = Timer(progress)
+    with timer.stage("read"):  # the image is read (a large one opened for windows) and checked before any write
+        front = (tiling.TiledImage.open(req, config) if tiling.needs_tiling(req.image)
+                 else WholeImage.read(req, config))
+    check_dems(req, front)
     notes: list[str] = []
     inputs = (req.image, req.library, *(DemSource.parse(d).path for d in req.dems))
     with output_folder(req.out, overwrite=req.overwrite, command=req.command, notes=notes,
                        inputs=inputs) as stage:
-        sreq = replace(req, out=str(stage), overwrite=False)
-        if tiled:  # large orthophotos run by windows in bounded memory
-            res = tiling.generate_tiled(sreq, config, progress)
-        else:
-            assert image is not None
-            timer = Timer(progress)
-            timer.t["read"], timer.cpu["read"] = round(t_read or 0.0, 3), round(t_read or 0.0, 3)
-            side = (SideProcess.start(image.grid.width_px * image.grid.height_px, _side_warm_up) if req.side_process
-                    else None)
-            try:
-                res = _run_chain(sreq, config, image, stage, timer, side)
-            finally:
-                if side is not None:
-                    side.close()
+        res = run_chain(front, replace(req, out=str(stage), overwrite=False), config, stage, timer)
     return _relocated(res, stage, Path(req.out), notes)
 
 
 def check_dems(req: GenerateRequest, image) -> None:
     """Refuse, before any work, a --dem that does not exist or cannot be placed: generate fuses DEMs by the
-    image's georeference, which a plain PNG/JPEG does not have."""
+    image's georeference, which a plain PNG/JPEG does not have. ``image``: the read image or the chain's
+    front end (anything with the image's ``grid``), or None to read the georeference from the file."""
     if not req.dems:
         return
     from .errors import InputError
@@ -335,15 +319,155 @@ def _relocated(res: GenerateResult, stage: Path, out: Path, notes: list[str]) ->
                    report_path=mv(res.report_path) if res.report_path else None)
 
 
-def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path, timer: Timer,
-               side: "SideProcess | None") -> GenerateResult:
-    """The stages after reading the image (``side``: the side process, when there is one)."""
-    from .detection import detect
+class FrontEnd(Protocol):
+    """The stage operations that read the image, for ``run_chain``: ``WholeImage`` holds the image in memory;
+    ``tiling.TiledImage`` reads it by windows and merges the results across the seams."""
+
+    @property
+    def grid(self) -> Grid:
+        """The input image's grid: detections are in its pixels."""
+
+    @property
+    def scene_grid(self) -> Grid:
+        """The grid of the scene rasters (the input's, or coarser for a large image)."""
+
+    @property
+    def preview(self) -> GeoImage:
+        """The image on the scene grid (the terrain's optical cue, the cleaned image, the previews)."""
+
+    @property
+    def report_image(self) -> np.ndarray | None:
+        """The input as the report shows it (None: the report reads it from the file)."""
+
+    @property
+    def detections_provenance(self) -> dict | None:
+        """What detections.json says about how the detections were made, if anything."""
+
+    @property
+    def provenance(self) -> dict:
+        """Provenance entries of the scene about how the image was read."""
+
+    def segment(self, config: Config, progress: Progress | None) -> ClassMap:
+        """The class map on the input grid."""
+
+    def detect(self, class_map: ClassMap, config: Config, progress: Progress | None, side: SideProcess | None,
+               side_queued: Callable[[], None]) -> tuple[list[Detection], ClassMap, dict]:
+        """Detections on the input grid, reconciled with the class map: (detections, the corrected class map,
+        what the reconciliation changed). ``side_queued()`` is called once this stage's own side-process
+        work is queued (the side process runs its jobs in order)."""
+
+    def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
+                      config: Config) -> tuple[ClassMap, list[Detection], dict]:
+        """The class map and detections on the scene grid, reconciled across seams: (class map, detections,
+        what that changed)."""
+
+    def matcher(self) -> Callable:
+        """``match(dets, library, config, kit) -> decisions`` for the input-grid detections; picklable, for
+        the side process."""
+
+    def piers(self, dets: list[Detection], class_map: ClassMap, walkway, finger, config) -> tuple[list, dict]:
+        """Pier segments for the scene-grid detections and class map: (objects, report)."""
+
+
+@dataclass(frozen=True)
+class WholeImage:
+    """The input read whole (``io.read_image``): every stage sees all of it, and the scene grid is its grid."""
+
+    image: GeoImage
+
+    @classmethod
+    def read(cls, req: GenerateRequest, config: Config) -> "WholeImage":
+        from .io import read_image
+
+        return cls(read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config))
+
+    @property
+    def grid(self) -> Grid:
+        return self.image.grid
+
+    @property
+    def scene_grid(self) -> Grid:
+        return self.image.grid
+
+    @property
+    def preview(self) -> GeoImage:
+        return self.image
+
+    @property
+    def report_image(self) -> np.ndarray:
+        return self.image.rgb
+
+    @property
+    def detections_provenance(self) -> None:
+        return None
+
+    @property
+    def provenance(self) -> dict:
+        return {}
+
+    def segment(self, config: Config, progress: Progress | None) -> ClassMap:
+        from .segmentation import segment
+
+        return segment(self.image, config.segment, seed=config.seed)
+
+    def detect(self, class_map: ClassMap, config: Config, progress: Progress | None, side: SideProcess | None,
+               side_queued: Callable[[], None]) -> tuple[list[Detection], ClassMap, dict]:
+        from .detection import detect
+
+        opts = {}
+        if side is not None and config.detect.backend == "hybrid":  # its classical half runs in the side process
+            from .detection.hybrid import classical_part
+
+            opts["classical_dets"] = side.submit(classical_part, self.image, class_map, config.detect, config.seed)
+        side_queued()
+        return detect(self.image, config.detect, class_map=class_map, seed=config.seed, return_class_map=True,
+                      **opts)
+
+    def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
+                      config: Config) -> tuple[ClassMap, list[Detection], dict]:
+        return class_map, dets, {}
+
+    def matcher(self) -> Callable:
+        return partial(match_in_image, self.image)
+
+    def piers(self, dets: list[Detection], class_map: ClassMap, walkway, finger, config) -> tuple[list, dict]:
+        from .piers import build_piers
+
+        pr = build_piers(dets, class_map, walkway, finger, config)
+        return list(pr.objects), pr.report
+
+
+def match_in_image(image: GeoImage, dets: list[Detection], library, config: Config, kit=None) -> list:
+    """``matching.match_detections`` on an image in memory (``kit``: the fallback library)."""
     from .matching import match_detections
-    from .piers import build_piers, set_deck_heights
-    from .segmentation import segment
+
+    return match_detections(image, dets, library, config.match, config.seed, fallback=kit)
+
+
+# the margin of the boxes whose classes are filled from their surroundings, in input pixels
+FILL_MARGIN_PX = 2.0
+
+
+def run_chain(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, timer: Timer) -> GenerateResult:
+    """The stages of ``generate`` after reading the image, in one order whether the image is whole in memory
+    or read by windows (``front``), into the folder ``out``; with a side process when ``req.side_process``
+    asks for one (and the image is big enough)."""
+    n_px = front.grid.width_px * front.grid.height_px
+    side = SideProcess.start(n_px, _side_warm_up) if req.side_process else None
+    try:
+        return _stages(front, req, config, out, timer, side)
+    finally:
+        if side is not None:
+            side.close()
+
+
+def _stages(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, timer: Timer,
+            side: SideProcess | None) -> GenerateResult:
+    """segment → detect (reconciled with the class map; on the scene grid) → self-check → clean → terrain →
+    piers → vegetation → match and placement → scene files → exports → report → scene.json."""
+    from .piers import set_deck_heights
+    from .selfcheck import check_scene
     from .terrain import estimate_terrain
-    from .types import HeightMap
     from .vegetation import scatter
 
     # shapely is imported by the background threads (matching, the report) and by this one (piers): a
@@ -354,46 +478,45 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
     import shapely.geometry  # noqa: F401
 
     seed = config.seed
-    grid = image.grid
-    # Independent work runs beside the main chain (segment → detect → terrain → piers → vegetation →
-    # placement): the library loads while segmentation and detection run; matching (it needs the library
-    # and the detections, not the terrain) runs beside terrain, piers and vegetation; the cleaned image is
-    # needed only by the report, which waits for it last; every side raster is written as soon as its stage
-    # is done.
+    grid, sgrid = front.grid, front.scene_grid
+    # Independent work runs beside the main chain: the library loads while segmentation and detection run;
+    # matching (it needs the library and the detections, not the terrain) runs beside terrain, piers and
+    # vegetation; the cleaned image is needed only by the report, which waits for it last; every side
+    # raster is written as soon as its stage is done.
     # threads that wait on the side process hold a worker: room for those and the CPU-bound jobs
     with Background(workers=8) as bg:
         bg.submit(Job.LIBRARY, _load_library, req.library, config.library)
         with timer.stage("segment"):
-            class_map = segment(image, config.segment, seed=seed)
+            class_map = front.segment(config, timer.progress)
         with timer.stage("detect"):
-            opts = {}
-            if side is not None and config.detect.backend == "hybrid":  # its classical half runs in the side process
-                from .detection.hybrid import classical_part
+            def side_library():  # the side process loads the library its matching will need
+                bg.result(Job.LIBRARY)  # built first (a first run builds the starter kit)
+                side.submit(_preload_library, req.library, config.library)
 
-                opts["classical_dets"] = side.submit(classical_part, image, class_map, config.detect, seed)
-            if side is not None:  # then the side process loads the library its matching will need
-                def side_library():
-                    bg.result(Job.LIBRARY)  # built first (a first run builds the starter kit)
-                    side.submit(_preload_library, req.library, config.library)
+            def side_queued():
+                if side is not None:
+                    bg.submit(Job.SIDE_LIBRARY, side_library)
 
-                bg.submit(Job.SIDE_LIBRARY, side_library)
-            dets, class_map, consistency = detect(image, config.detect, class_map=class_map, seed=seed,
-                                                  return_class_map=True, **opts)
-        from .selfcheck import check_scene
-
-        warnings = check_scene(class_map.ids, grid.gsd_m, dets)
+            dets, class_map, consistency = front.detect(class_map, config, timer.progress, side, side_queued)
+            # the stages from here on run on the scene grid (a large image's is coarser)
+            class_map, s_dets, seams = front.to_scene_grid(class_map, dets, config)
+            consistency = {**consistency, **seams}
+        warnings = check_scene(class_map.ids, sgrid.gsd_m, s_dets)
         with timer.stage("clean"):
-            class_map = fill_under_objects(class_map, dets)
+            class_map = fill_under_objects(class_map, s_dets, FILL_MARGIN_PX * sgrid.width_px / grid.width_px)
+        match = front.matcher()
         if side is not None:  # matching is mostly Python: in the side process it leaves the GIL to the chain
             bg.result(Job.LIBRARY)  # the side process loads the library only once this one has it (built)
-            bg.submit(Job.MATCH, side.run, _match_job, req.library, image, dets, config.match, seed, config.library)
+            bg.submit(Job.MATCH, side.run, _match_job, match, req.library, dets, config)
         else:
-            bg.submit(Job.MATCH, lambda: match_detections(
-                image, dets, bg.result(Job.LIBRARY), config.match, seed,
-                fallback=fallback_kit(bg.result(Job.LIBRARY), req.library, config.library)[0]))
-        _write_segment_outputs(bg, out, image, class_map, dets, config, seed, side)
+            def match_here():
+                library = bg.result(Job.LIBRARY)
+                return match(dets, library, config, fallback_kit(library, req.library, config.library)[0])
+
+            bg.submit(Job.MATCH, match_here)
+        _write_segment_outputs(bg, out, front, class_map, dets, s_dets, config, seed, side)
         with timer.stage("terrain"):
-            terrain = estimate_terrain(class_map, config.terrain, image=image, dems=req.dems, seed=seed)
+            terrain = estimate_terrain(class_map, config.terrain, image=front.preview, dems=req.dems, seed=seed)
             height: HeightMap = terrain.height
         _write_terrain_outputs(bg, out, terrain)
         if req.report:  # the report's render from above: its terrain now, while the chain waits for matching
@@ -410,13 +533,12 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             pier_report: dict = {"n_structures": 0}
             pier_objects: list = []
             if walk is not None:
-                pr = build_piers(dets, class_map, walk, finger, config.piers)
-                pier_objects, pier_report = list(pr.objects), pr.report
+                pier_objects, pier_report = front.piers(s_dets, class_map, walk, finger, config.piers)
                 # decks level with the quay they leave, not at the water surface
                 pier_objects = set_deck_heights(pier_objects, class_map.ids, height, config.piers,
                                                 config.terrain.quay_height_m)
         with timer.stage("vegetation"):  # while the matcher works: clear of the piers and the detected boxes
-            veg = scatter(class_map.ids, height.z_m, grid, assets_by_category(library, kit),
+            veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library, kit),
                           pier_objects + detection_footprints(dets, grid), config.vegetation, seed)
         with timer.stage("match"):  # waiting for the matcher, then placement on the terrain
             decisions = bg.result(Job.MATCH)
@@ -428,10 +550,10 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             # the scene rasters; the inpainted image, the segmentation rasters and the report's meshes are
             # still being made beside: the report starts on its other sections meanwhile
             scene = write_scene_files(
-                bg, out, req, seed, grid, grid.transform, height, class_map, objects, veg,
+                bg, out, req, seed, grid, sgrid.transform, height, class_map, objects, veg,
                 scene_provenance(req, config, library, grid.gsd_m, (grid.width_px, grid.height_px), dets, objects,
-                                 veg.vegetation, pier_report, decisions, consistency=consistency,
-                                 warnings=[w.to_dict() for w in warnings]),
+                                 veg.vegetation, pier_report, decisions, **front.provenance,
+                                 consistency=consistency, warnings=[w.to_dict() for w in warnings]),
                 pending=(Job.CLEANED, Job.SEGMENTATION, Job.REPORT_MESHES, Job.SCENE_RASTERS, Job.PCG,
                          Job.TERRAIN_OUTPUTS))
         timings = dict(timer.t)
@@ -449,7 +571,7 @@ def _run_chain(req: GenerateRequest, config: Config, image: GeoImage, out: Path,
             timings["total"] = round(timings["total"] + timings["export"], 3)
 
         report_path = make_report(req, out, timings, scene=_with_timings(scene, timings, timer, bg),
-                                  image=image.rgb, library=library,
+                                  image=front.report_image, library=library,
                                   top_terrain=bg.result(Job.REPORT_TERRAIN) if req.report else None,
                                   wait=report_waiter(bg))
         bg.wait()  # re-raises a failed job (without a report nothing else waited for them all)
@@ -589,13 +711,11 @@ def _library_here(path: str | None, lib_config: LibraryConfig = LibraryConfig())
     return _HERE[key]
 
 
-def _match_job(library_path: str | None, image: GeoImage, dets: list[Detection], config, seed: int,
-               lib_config: LibraryConfig = LibraryConfig()) -> list:
-    """``match_detections`` where the library is this process's (a module-level function for the side process)."""
-    from .matching import match_detections
-
-    lib = _library_here(library_path, lib_config)
-    return match_detections(image, dets, lib, config, seed, fallback=fallback_kit(lib, library_path, lib_config)[0])
+def _match_job(match: Callable, library_path: str | None, dets: list[Detection], config: Config) -> list:
+    """``match`` (a front end's ``matcher()``) with this process's library (a module-level function for the
+    side process)."""
+    lib = _library_here(library_path, config.library)
+    return match(dets, lib, config, fallback_kit(lib, library_path, config.library)[0])
 
 
 def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
@@ -609,19 +729,22 @@ def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map
     return rgb
 
 
-def _write_segment_outputs(bg: Background, out: Path, image: GeoImage, class_map: ClassMap, dets, config: Config,
-                           seed: int, side: SideProcess | None = None) -> None:
-    """detections.json now; the cleaned image (transient objects removed: no later stage reads it, only the
-    report) and the segmentation rasters (previews, paint-layer weights, biome map) in the background."""
+def _write_segment_outputs(bg: Background, out: Path, front: FrontEnd, class_map: ClassMap, dets, s_dets,
+                           config: Config, seed: int, side: SideProcess | None = None) -> None:
+    """detections.json now (``dets``, in input pixels); the cleaned image (transient objects removed: no later
+    stage reads it, only the report) and the segmentation rasters (previews, paint-layer weights, biome map)
+    on the scene grid (``class_map``, ``s_dets``) in the background."""
     from .detection import detections_to_json
     from .segmentation.outputs import write_segmentation
 
-    g = image.grid
-    atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px)))
+    g = front.grid
+    atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px),
+                                                                  front.detections_provenance))
+    image = front.preview
     if side is not None:
-        bg.submit(Job.CLEANED, side.run, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
+        bg.submit(Job.CLEANED, side.run, _write_cleaned, out / "cleaned.png", image, s_dets, class_map, seed)
     else:
-        bg.submit(Job.CLEANED, _write_cleaned, out / "cleaned.png", image, dets, class_map, seed)
+        bg.submit(Job.CLEANED, _write_cleaned, out / "cleaned.png", image, s_dets, class_map, seed)
     bg.submit(Job.SEGMENTATION, write_segmentation, out / "segmentation", class_map, image, config.segment, low=True)
 
 

@@ -12,11 +12,10 @@ segmenter) equals it away from the seams as far as its context reaches.
   cut by a tile edge loses to the whole box the neighbouring tile holds; pier walkways longer than the
   overlap are joined from their cut pieces.
 - ``terrain_tiled`` runs the terrain per tile with an overlap of the terrain's influence distance.
-- ``generate_tiled`` is ``generate`` for such images: full-resolution classes and detections, and the
-  scene rasters (terrain, classes, vegetation) on a scene grid of at most ``scene_max_px`` per side.
-
-Wire-in for the pipeline (first lines of ``run_generate``): ``if tiling.needs_tiling(req.image): return
-tiling.generate_tiled(req, config, progress)``.
+- ``TiledImage`` is the front end ``pipeline.run_chain`` runs such images through (the same stages in the
+  same order as a whole image): full-resolution classes and detections, and the scene rasters (terrain,
+  classes, vegetation) on a scene grid of at most ``scene_max_px`` per side. ``run_generate`` picks it
+  for images over ``TILING_THRESHOLD_PX`` (``needs_tiling``); ``generate_tiled`` runs it with other tile sizes.
 """
 
 from __future__ import annotations
@@ -24,6 +23,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -32,9 +32,9 @@ import numpy as np
 from .classes import N_CLASSES
 from .config import Config, DetectConfig, IOConfig, SegmentConfig, TerrainConfig
 from .errors import ConfigError, InputError
-from .types import ClassMap, Detection, GeoImage, Grid, HeightMap
+from .types import ClassMap, Detection, GeoImage, Grid
 
-TILING_THRESHOLD_PX = 4096 * 4096  # images larger than this go through generate_tiled
+TILING_THRESHOLD_PX = 4096 * 4096  # larger images are read by windows (TiledImage)
 PIER_CATEGORIES = ("pier_walkway", "pier_finger")
 
 
@@ -625,24 +625,25 @@ def needs_tiling(image: str | Path, threshold_px: int = TILING_THRESHOLD_PX) -> 
         return False
 
 
-def _match_tiled(src: Source, dets: list[Detection], library, config: Config, tile_px: int, kit=None):
-    """``match_detections`` per tile: each group of detections gets a window just big enough for its crops."""
+def match_tiled(source: Source, tile_px: int, dets: list[Detection], library, config: Config, kit=None) -> list:
+    """``matching.match_detections`` by windows: the detections (input pixels) grouped by tile, each group
+    with a window just big enough for its crops (``kit``: the fallback library)."""
+    from rasterio.windows import Window
+
     from .matching import ASSET_CATEGORIES_FOR, match_detections
 
-    W, H = src.grid.width_px, src.grid.height_px
+    W, H = source.grid.width_px, source.grid.height_px
     groups: dict[tuple[int, int], list[int]] = {}
     for k, d in enumerate(dets):
         if d.category in ASSET_CATEGORIES_FOR:
             groups.setdefault((int(d.cx_px // tile_px), int(d.cy_px // tile_px)), []).append(k)
     decisions = []
-    from rasterio.windows import Window
-
     for _key, idx in sorted(groups.items()):
         boxes = np.array([dets[k].corners_px() for k in idx]).reshape(-1, 2)
         pad = max(max(dets[k].length_px, dets[k].width_px) for k in idx) * 1.1 + 8
         c0, r0 = (int(max(0, math.floor(v - pad))) for v in boxes.min(0))
         c1, r1 = int(min(W, math.ceil(boxes[:, 0].max() + pad))), int(min(H, math.ceil(boxes[:, 1].max() + pad)))
-        img = read_window(src, Window(c0, r0, c1 - c0, r1 - r0))
+        img = read_window(source, Window(c0, r0, c1 - c0, r1 - r0))
         local = [_shift(dets[k], -c0, -r0) for k in idx]
         for dec in match_detections(img, local, library, config.match, config.seed, fallback=kit):
             decisions.append(replace(dec, index=idx[dec.index]))
@@ -658,125 +659,110 @@ def _tile_progress(progress, stage: str):
     return lambda k, n: progress(stage, min(k / max(n, 1), 0.999))
 
 
-def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, overlap_px: int = 256,
-                   scene_max_px: int = 4096):
-    """``run_generate`` for images too large to hold: read by windows, segment and detect per tile at full
-    resolution, then terrain, matching, piers and vegetation on a scene grid of at most ``scene_max_px`` per
-    side (the classes are block-majority downsampled). Returns a ``pipeline.GenerateResult``."""
-    from .detection import detections_to_json
-    from .fsio import atomic_write_text, write_png
-    from .runtime import Background, Job, Timer
-    from .pipeline import (GenerateResult, _load_library, _pier_assets, _with_timings,
-                           fallback_kit, fallback_warning,
-                           assets_by_category, fill_under_objects, make_report, object_counts, place_decisions,
-                           scene_provenance, write_scene_files)
-    from .piers import set_deck_heights
-    from .scene import save_scene
-    from .segmentation.clean import clean_image
-    from .segmentation.outputs import write_segmentation
-    from .terrain import estimate_terrain
-    from .terrain.outputs import write_terrain_outputs
-    from .config import validate_config
-    from .io import check_memory
-    from .consistency import water_from_boats
-    from .selfcheck import check_scene
-    from .vegetation import scatter
+@dataclass(frozen=True)
+class TiledImage:
+    """A large image as ``pipeline.run_chain`` sees it: segmented and detected by windows at full resolution
+    (merged across the seams), the later stages on a scene grid of at most ``scene_max_px`` per side (the
+    classes block-majority downsampled, the detections scaled, the moored boats' water decided on the
+    whole scene grid)."""
 
-    _check_tiling(tile_px, overlap_px)
-    if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
-        raise ConfigError(f"scene_max_px = {scene_max_px!r} must be an integer ≥ 127 (e.g. 4096)")
-    validate_config(config)
-    timer = Timer(progress)
-    seed = config.seed
-    with timer.stage("read"):
+    source: Source
+    scene_grid: Grid
+    preview: GeoImage  # the image averaged down to the scene grid
+    tile_px: int
+    overlap_px: int
+    detect_overlap_px: int
+
+    @classmethod
+    def open(cls, req, config: Config, tile_px: int = 2048, overlap_px: int = 256,
+             scene_max_px: int = 4096) -> "TiledImage":
+        """Open and check ``req.image`` (``open_source``), check the run's memory and read the preview."""
+        from .io import check_memory
+
+        _check_tiling(tile_px, overlap_px)
+        if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
+            raise ConfigError(f"scene_max_px = {scene_max_px!r} must be an integer ≥ 127 (e.g. 4096)")
         src = open_source(req.image, req.gsd_m, req.size_m, config.io)
-        grid = src.grid
-        W, H = grid.width_px, grid.height_px
+        W, H = src.grid.width_px, src.grid.height_px
         f = max(1.0, max(W, H) / scene_max_px)
         sw, sh = max(8, int(round(W / f))), max(8, int(round(H / f)))
         # the stages after segmentation and detection run on the scene grid (tiles are bounded), beside the
         # full-resolution class ids (1 byte per input pixel)
-        check_memory(req.image, sw, sh, grid.gsd_m * W / sw, config.io, stages=config,
+        check_memory(req.image, sw, sh, src.grid.gsd_m * W / sw, config.io, stages=config,
                      read_bytes_per_px=W * H / (sw * sh), tiled=True)
-        overview = read_overview(src, sw, sh)
-        sgrid = overview.grid
-        fx = W / sw
-    out = Path(req.out)  # the staging folder of run_generate; every input check done: the first write here
+        preview = read_overview(src, sw, sh)
+        # an object is whole in some tile when the overlap is at least half its length
+        half_boat_px = int(math.ceil(config.detect.max_boat_length_m / 2 / src.grid.gsd_m))
+        det_ov = max(overlap_px, min(tile_px, half_boat_px + 8))
+        return cls(src, preview.grid, preview, tile_px, overlap_px, det_ov)
+
+    @property
+    def grid(self) -> Grid:
+        return self.source.grid
+
+    @property
+    def report_image(self) -> None:
+        return None  # the report reads the input itself
+
+    @property
+    def detections_provenance(self) -> dict:
+        return {"tiled": True, "tile_px": self.tile_px}
+
+    @property
+    def provenance(self) -> dict:
+        sg = self.scene_grid
+        return {"tiled": {"tile_px": self.tile_px, "overlap_px": self.overlap_px,
+                          "detect_overlap_px": self.detect_overlap_px, "scene_grid_px": [sg.width_px, sg.height_px],
+                          "scene_gsd_m": sg.gsd_m}}
+
+    def segment(self, config: Config, progress) -> ClassMap:
+        ids = segment_tiled(self.source, config=config.segment, tile_px=self.tile_px, overlap_px=self.overlap_px,
+                            seed=config.seed, progress=_tile_progress(progress, "segment"))
+        return ClassMap(ids, self.grid)
+
+    def detect(self, class_map: ClassMap, config: Config, progress, side,
+               side_queued) -> tuple[list[Detection], ClassMap, dict]:
+        """Each tile's detections are reconciled with its own class map; the corrected maps are dropped (the
+        moored boats' water is decided on the whole scene grid, ``to_scene_grid``)."""
+        side_queued()
+        dets = detect_tiled(self.source, config=config.detect, class_ids=class_map.ids, tile_px=self.tile_px,
+                            overlap_px=self.detect_overlap_px, seed=config.seed,
+                            progress=_tile_progress(progress, "detect"))
+        return dets, class_map, {}
+
+    def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
+                      config: Config) -> tuple[ClassMap, list[Detection], dict]:
+        from .consistency import water_from_boats
+
+        sg = self.scene_grid
+        f = self.grid.width_px / sg.width_px
+        cm = ClassMap(downsample_classes(class_map.ids, sg.width_px, sg.height_px), sg)
+        s_dets = [scale_detection(d, f) for d in dets]
+        notes: dict = {}
+        if config.detect.boats_make_water:
+            # a marina cut by tile borders becomes water as in a whole-image run
+            cm, notes = water_from_boats(s_dets, cm, sg.gsd_m)
+        return cm, s_dets, notes
+
+    def matcher(self):
+        return partial(match_tiled, self.source, self.tile_px)
+
+    def piers(self, dets: list[Detection], class_map: ClassMap, walkway, finger, config) -> tuple[list, dict]:
+        return piers_tiled(dets, class_map, walkway, finger, config)
+
+
+def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, overlap_px: int = 256,
+                   scene_max_px: int = 4096):
+    """``run_generate``'s chain on a ``TiledImage``, written straight into ``req.out`` (no staging folder):
+    for images too large to hold. Returns a ``pipeline.GenerateResult``."""
+    from .config import validate_config
+    from .pipeline import run_chain
+    from .runtime import Timer
+
+    validate_config(config)
+    timer = Timer(progress)
+    with timer.stage("read"):
+        front = TiledImage.open(req, config, tile_px, overlap_px, scene_max_px)
+    out = Path(req.out)  # every input check done: the first write here
     out.mkdir(parents=True, exist_ok=True)
-    # the library loads beside segmentation and detection; side rasters are written beside the later stages
-    # (see pipeline.run_generate)
-    with Background() as bg:
-        bg.submit(Job.LIBRARY, _load_library, req.library, config.library)
-        with timer.stage("segment"):
-            ids = segment_tiled(src, config=config.segment, tile_px=tile_px, overlap_px=overlap_px, seed=seed,
-                                progress=_tile_progress(progress, "segment"))
-        with timer.stage("detect"):
-            # an object is whole in some tile when the overlap is at least half its length
-            half_boat_px = int(math.ceil(config.detect.max_boat_length_m / 2 / grid.gsd_m))
-            det_ov = max(overlap_px, min(tile_px, half_boat_px + 8))
-            dets = detect_tiled(src, config=config.detect, class_ids=ids, tile_px=tile_px, overlap_px=det_ov,
-                                seed=seed, progress=_tile_progress(progress, "detect"))
-        with timer.stage("clean"):
-            full_cm = fill_under_objects(ClassMap(ids, grid), dets)
-            del ids
-            s_ids = downsample_classes(full_cm.ids, sw, sh)
-            del full_cm
-            class_map = ClassMap(s_ids, sgrid)
-            s_dets = [scale_detection(d, fx) for d in dets]
-            # each tile's detections were checked against its own water; the water the boats make is decided
-            # here, on the whole scene grid (bounded), so a marina cut by tile borders becomes water as in a
-            # whole-image run
-            consistency: dict = {}
-            if config.detect.boats_make_water:
-                class_map, consistency = water_from_boats(s_dets, class_map, sgrid.gsd_m)
-        warns = check_scene(class_map.ids, sgrid.gsd_m, s_dets)  # the self-check, as a whole-image run makes it
-        atomic_write_text(out / "detections.json",
-                          detections_to_json(dets, grid.gsd_m, (W, H), {"tiled": True, "tile_px": tile_px}))
-        bg.submit(Job.CLEANED, lambda: write_png(out / "cleaned.png", clean_image(overview, s_dets, class_map, seed)))
-        bg.submit(Job.SEGMENTATION, write_segmentation, out / "segmentation", class_map, overview, config.segment)
-        with timer.stage("terrain"):
-            terrain = estimate_terrain(class_map, config.terrain, image=overview, dems=req.dems, seed=seed)
-            height: HeightMap = terrain.height
-        bg.submit(Job.TERRAIN_OUTPUTS, write_terrain_outputs, out / "terrain_outputs", terrain)
-        with timer.stage("library"):  # the time the chain waited for the library
-            library = bg.result(Job.LIBRARY)
-            kit, missing = fallback_kit(library, req.library, config.library)
-            warns += [fallback_warning(req.library, missing)] if missing else []
-        with timer.stage("match"):
-            decisions = _match_tiled(src, dets, library, config, tile_px, kit)
-            objects = place_decisions(decisions, dets, library, grid, config, height, kit)
-        with timer.stage("piers"):
-            walk, finger = _pier_assets(library)
-            if walk is None and kit is not None:
-                walk, finger = _pier_assets(kit)
-            pier_report: dict = {"n_structures": 0}
-            if walk is not None:
-                pier_objects, pier_report = piers_tiled(s_dets, class_map, walk, finger, config.piers)
-                objects.extend(set_deck_heights(pier_objects, class_map.ids, height, config.piers,
-                                                config.terrain.quay_height_m))
-        with timer.stage("vegetation"):
-            veg = scatter(class_map.ids, height.z_m, sgrid, assets_by_category(library, kit), objects, config.vegetation,
-                          seed)
-        with timer.stage("write"):
-            # the transform is the scene rasters' (coarser than the input when the image was downsampled)
-            scene = write_scene_files(
-                bg, out, req, seed, grid, sgrid.transform, height, class_map, objects, veg,
-                scene_provenance(
-                    req, config, library, grid.gsd_m, (W, H), dets, objects, veg.vegetation, pier_report, decisions,
-                    tiled={"tile_px": tile_px, "overlap_px": overlap_px, "detect_overlap_px": det_ov,
-                           "scene_grid_px": [sw, sh], "scene_gsd_m": sgrid.gsd_m},
-                    consistency=consistency, warnings=[w.to_dict() for w in warns]))
-    exports = {}
-    if req.exports:
-        with timer.stage("export"):
-            from .export import export_scene
-
-            exports = export_scene(scene, list(req.exports), out, overwrite=True, config=config.export,
-                                   library=library)
-    timings = dict(timer.t)
-    timings["total"] = round(sum(timer.t.values()), 3)
-    scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)  # the JSON last
-    report_path = make_report(req, out, timings)
-    return GenerateResult(scene_path, out, timings, object_counts(objects, len(veg.vegetation)), exports,
-                          report_path, warns)
-
+    return run_chain(front, req, config, out, timer)
