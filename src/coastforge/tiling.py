@@ -457,14 +457,18 @@ def merge_tile_detections(per_tile: list[tuple[Tile, list[Detection]]], width: i
 def detect_tiled(path, grid: Grid | None = None, config: DetectConfig | None = None,
                  class_ids: np.ndarray | None = None, tile_px: int = 2048, overlap_px: int = 256, seed: int = 0, *,
                  source: Source | None = None, backend: str | None = None, detector: Detector | None = None,
-                 keep_masks: bool = False, progress: Callable[[int, int], None] | None = None) -> list[Detection]:
+                 keep_masks: bool = False, progress: Callable[[int, int], None] | None = None,
+                 side=None) -> list[Detection]:
     """Detections over the whole image in full-image pixel coordinates, tile by tile, merged across tile
     borders (see ``merge_tile_detections``). ``class_ids``: the full (H, W) class map, if any.
-    An object is found whole when ``overlap_px`` ≥ half its length; longer pier walkways are joined."""
+    An object is found whole when ``overlap_px`` ≥ half its length; longer pier walkways are joined.
+    ``side`` (a ``runtime.SideProcess``): the hybrid detector's classical half of each tile runs there,
+    beside its network here, as in a whole-image run."""
     from .detection import detect
 
     src = _source(path, grid, source)
     cfg = config or DetectConfig()
+    split = side is not None and detector is None and (backend or cfg.backend) == "hybrid"
     W, H = src.grid.width_px, src.grid.height_px
     if class_ids is not None and class_ids.shape != (H, W):
         raise InputError(f"class_ids shape {class_ids.shape} differs from the image's {(H, W)}; "
@@ -477,8 +481,15 @@ def detect_tiled(path, grid: Grid | None = None, config: DetectConfig | None = N
         if class_ids is not None:
             cm = ClassMap(np.ascontiguousarray(class_ids[t.row_off:t.row_off + t.height,
                                                          t.col_off:t.col_off + t.width]), img.grid)
-        dets = detector(img, cm, seed) if detector is not None else detect(img, cfg, class_map=cm,
-                                                                          backend=backend, seed=seed)
+        if detector is not None:
+            dets = detector(img, cm, seed)
+        else:
+            opts = {}
+            if split:
+                from .detection.hybrid import classical_part
+
+                opts["classical_dets"] = side.submit(classical_part, img, cm, cfg, seed)
+            dets = detect(img, cfg, class_map=cm, backend=backend, seed=seed, **opts)
         shifted = [_shift(d if keep_masks else replace(d, mask=None, mask_origin_px=None), t.col_off, t.row_off)
                    for d in dets]
         per_tile.append((t, shifted))
@@ -727,7 +738,7 @@ class TiledImage:
         side_queued()
         dets = detect_tiled(self.source, config=config.detect, class_ids=class_map.ids, tile_px=self.tile_px,
                             overlap_px=self.detect_overlap_px, seed=config.seed,
-                            progress=_tile_progress(progress, "detect"))
+                            progress=_tile_progress(progress, "detect"), side=side)
         return dets, class_map, {}
 
     def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
