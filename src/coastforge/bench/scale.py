@@ -3,8 +3,13 @@
 1. Image size: peak memory (the process tree's resident set, sampled with psutil, and the child's own
    ``ru_maxrss``) and wall time of ``tiling.generate_tiled`` on synthetic GeoTIFF squares (1k, 4k, 8k,
    16k px by default). Each run is a fresh child process, so its peak is its own.
-2. Workers: a batch of 20 small synthetic scenes plus one corrupted input on a local Dask cluster
+2. Cost per pixel: a tiled run (4096² in 2048 px tiles by default) against a whole-image run (2048²) of the
+   same synthetic coast, per pixel: wall time and the CPU of the process tree, in total and per stage
+   (DESIGN.md: the tiled path within 1.3x of the whole-image path).
+3. Workers: a batch of 20 small synthetic scenes plus one corrupted input on a local Dask cluster
    (``coastforge.batch.run_batch``) with 1 and with 2 workers, then a re-run that must skip what is done.
+
+Every generate runs as the CLI runs it: the default preset, with its side process.
 
 The big images are mirrored tilings of one rendered synthetic level (``coastforge.synth``), written band by
 band (never whole in memory), georeferenced in UTM. Timings on a shared machine vary: the load average
@@ -86,7 +91,8 @@ def write_mirrored_geotiff(path: Path, base: np.ndarray, size_px: int, band_rows
 
 
 class TreePeak:
-    """Peak resident memory of a process and its children, sampled in a thread."""
+    """Peak resident memory of a process and its children, sampled in a thread, and the CPU seconds each
+    process of the tree had used when last seen (``cpu_s``)."""
 
     def __init__(self, pid: int, every_s: float = 0.25):
         import psutil
@@ -94,6 +100,7 @@ class TreePeak:
         self.proc = psutil.Process(pid)
         self.every = every_s
         self.peak = 0
+        self.cpu_s: dict[int, float] = {}
         self._stop = threading.Event()
         self._t = threading.Thread(target=self._run, daemon=True)
         self._t.start()
@@ -109,6 +116,8 @@ class TreePeak:
                 for p in procs:
                     try:
                         rss += p.memory_info().rss
+                        t = p.cpu_times()
+                        self.cpu_s[p.pid] = t.user + t.system
                     except psutil.Error:
                         pass
                 self.peak = max(self.peak, rss)
@@ -124,12 +133,14 @@ class TreePeak:
         return self.peak
 
 
-def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: int) -> None:
-    """Runs in the child process: one tiled generate, figures as JSON on the last line of stdout."""
+def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: int, mode: str = "tiled") -> None:
+    """Runs in the child process: one generate (``mode`` "tiled": ``generate_tiled`` with these tiles;
+    "whole": ``run_generate``, which holds an image up to 4096² whole), figures as JSON on the last line of
+    stdout."""
     import resource
 
     from ..config import load_config
-    from ..pipeline import GenerateRequest
+    from ..pipeline import GenerateRequest, run_generate
     from ..tiling import generate_tiled
 
     t0 = time.perf_counter()
@@ -149,14 +160,17 @@ def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: in
                               "maxrss_mb": round(ru.ru_maxrss / 1024.0, 1), "load": round(os.getloadavg()[0], 2)}),
                   file=sys.stderr, flush=True)
 
-    req = GenerateRequest(image=image, out=out, overwrite=True, report=False)
-    # the configuration `coastforge generate` runs (the default preset: hybrid detector)
-    r = generate_tiled(req, load_config("default", None, [], None), progress, tile_px=tile_px, overlap_px=overlap_px,
-                       scene_max_px=scene_max_px)
+    # the configuration `coastforge generate` runs: the default preset (hybrid detector), a side process
+    req = GenerateRequest(image=image, out=out, overwrite=True, report=False, side_process=True)
+    config = load_config("default", None, [], None)
+    if mode == "whole":
+        r = run_generate(req, config, progress)
+    else:
+        r = generate_tiled(req, config, progress, tile_px=tile_px, overlap_px=overlap_px, scene_max_px=scene_max_px)
     wall = time.perf_counter() - t0
     ru = resource.getrusage(resource.RUSAGE_SELF)
     print(json.dumps({"wall_s": wall, "maxrss_mb": ru.ru_maxrss / 1024.0, "cpu_s": ru.ru_utime + ru.ru_stime,
-                      "timings_s": r.timings_s, "n_objects": r.n_objects}))
+                      "pid": os.getpid(), "timings_s": r.timings_s, "n_objects": r.n_objects}))
 
 
 def _json_lines(text: str, key: str) -> list[dict]:
@@ -172,16 +186,17 @@ def _json_lines(text: str, key: str) -> list[dict]:
 
 
 def run_size(work: Path, base: np.ndarray, size: int, tile_px: int, overlap_px: int, scene_max_px: int,
-             timeout_s: float | None = None) -> dict:
-    """One child run; on ``timeout_s`` it is stopped and the stages it finished are reported."""
+             timeout_s: float | None = None, mode: str = "tiled") -> dict:
+    """One child run (``mode``: see ``_child``); on ``timeout_s`` it is stopped and the stages it finished
+    are reported."""
     img = work / f"scale_{size}.tif"
     if not img.is_file():
         t0 = time.perf_counter()
         write_mirrored_geotiff(img, base, size)
         print(f"  wrote {img.name} in {time.perf_counter() - t0:.1f} s", flush=True)
-    out = work / f"out_{size}"
+    out = work / (f"out_{size}" if mode == "tiled" else f"out_{mode}_{size}")
     cmd = [sys.executable, "-m", "coastforge.bench.scale", "--child", str(img), str(out), str(tile_px),
-           str(overlap_px), str(scene_max_px)]
+           str(overlap_px), str(scene_max_px), mode]
     t0 = time.perf_counter()
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     mon = TreePeak(p.pid)
@@ -203,9 +218,12 @@ def run_size(work: Path, base: np.ndarray, size: int, tile_px: int, overlap_px: 
     fig = json.loads(stdout.strip().splitlines()[-1])
     t = fig["timings_s"]
     proc = sum(v for k, v in t.items() if k not in ("library", "total", "report"))
-    return {"size": size, "wall_s": wall, "peak_tree_mb": peak / 2**20, "maxrss_mb": fig["maxrss_mb"],
-            "cpu_s": fig["cpu_s"], "processing_s": proc, "no_piers_s": proc - t.get("piers", 0.0),
-            "timings_s": t, "n_objects": fig["n_objects"], "stages": stages, "tile_cpu_s": per_tile}
+    # the child's own CPU at its end, plus what its side process had used when last sampled
+    tree_cpu = fig["cpu_s"] + sum(v for pid, v in mon.cpu_s.items() if pid != fig.get("pid", p.pid))
+    return {"size": size, "mode": mode, "wall_s": wall, "generate_s": fig["wall_s"], "peak_tree_mb": peak / 2**20,
+            "maxrss_mb": fig["maxrss_mb"], "cpu_s": fig["cpu_s"], "tree_cpu_s": tree_cpu, "processing_s": proc,
+            "no_piers_s": proc - t.get("piers", 0.0), "timings_s": t, "n_objects": fig["n_objects"],
+            "stages": stages, "tile_cpu_s": per_tile}
 
 
 def tile_cpu(tiles: list[dict], stages: list[dict]) -> dict:
@@ -268,6 +286,49 @@ def bench_sizes(work: Path, sizes, tile_px: int, overlap_px: int, scene_max_px: 
                 print(f"{what} time {b}/{a}: {ratio:.2f}x for {area:.0f}x the area "
                       f"(linear within 1.3x: {ratio <= 1.3 * area})")
     return rows
+
+
+# ------------------------------------------------------------------------------------- cost per pixel
+
+def bench_per_pixel(work: Path, whole_px: int = 2048, tiled_px: int = 4096, tile_px: int = 2048,
+                    overlap_px: int = 256, scene_max_px: int = 4096, timeout_s: float | None = None,
+                    json_path: str | None = None) -> dict:
+    """The tiled path's cost per pixel against the whole-image path's: ``run_generate`` on a ``whole_px``²
+    image (held whole) and ``generate_tiled`` on a ``tiled_px``² one, cut from the same synthetic coast,
+    each in a fresh child process. Ratios above 1: the tiled path costs more per pixel."""
+    base = base_render(work)
+    print(f"\n== cost per pixel: tiled {tiled_px}² (tiles {tile_px}, overlap {overlap_px}, scene grid <= "
+          f"{scene_max_px}) against whole image {whole_px}² ==", flush=True)
+    runs = {}
+    for mode, size in (("whole", whole_px), ("tiled", tiled_px)):
+        load = os.getloadavg()[0]
+        r = run_size(work, base, size, tile_px, overlap_px, scene_max_px, timeout_s, mode=mode)
+        r["load"] = load
+        runs[mode] = r
+        if "error" in r:
+            print(f"{mode:<6} {size:6d} px  FAILED ({r['error']})", flush=True)
+            return {"runs": runs}
+        px = float(size) ** 2
+        print(f"{mode:<6} {size:6d} px  generate {r['generate_s']:7.1f} s wall ({1e6 * r['generate_s'] / px:.2f} µs/px), "
+              f"CPU {r['tree_cpu_s']:7.1f} s ({1e6 * r['tree_cpu_s'] / px:.2f} µs/px), peak tree RSS "
+              f"{r['peak_tree_mb']:.0f} MB, load {load:.1f}", flush=True)
+    w, t = runs["whole"], runs["tiled"]
+    area = (tiled_px / whole_px) ** 2
+    ratios = {"wall": t["generate_s"] / w["generate_s"] / area, "cpu": t["tree_cpu_s"] / w["tree_cpu_s"] / area}
+    stages = {}
+    for k in dict.fromkeys([*w["timings_s"], *t["timings_s"]]):
+        if k in ("total",):
+            continue
+        a, b = w["timings_s"].get(k, 0.0), t["timings_s"].get(k, 0.0)
+        stages[k] = {"whole_s": a, "tiled_s": b, "per_px_ratio": (b / area / a) if a > 0 else None}
+        print(f"        {k:<11} whole {a:7.2f} s  tiled {b:7.2f} s  per pixel "
+              f"{'%.2fx' % stages[k]['per_px_ratio'] if a > 0 else '-'}", flush=True)
+    print(f"tiled / whole cost per pixel: wall {ratios['wall']:.2f}x, CPU {ratios['cpu']:.2f}x "
+          f"(within 1.3x: wall {ratios['wall'] <= 1.3}, CPU {ratios['cpu'] <= 1.3})", flush=True)
+    res = {"runs": runs, "ratio_per_px": ratios, "stages": stages}
+    if json_path:
+        Path(json_path).write_text(json.dumps(res, indent=1, default=str))
+    return res
 
 
 # --------------------------------------------------------------------------------------------- batch
@@ -338,15 +399,20 @@ def main(argv=None) -> None:
                     help="stop a size run after this many seconds and report the stages it finished")
     ap.add_argument("--work", default=None, help="folder for the synthetic inputs and outputs (default: a temp dir)")
     ap.add_argument("--no-sizes", action="store_true", help="skip the image-size runs")
+    ap.add_argument("--no-per-pixel", action="store_true", help="skip the tiled vs whole-image cost per pixel")
+    ap.add_argument("--whole-size", type=int, default=2048,
+                    help="side of the whole-image run of the per-pixel comparison (default %(default)s)")
+    ap.add_argument("--tiled-size", type=int, default=4096,
+                    help="side of the tiled run of the per-pixel comparison (default %(default)s)")
     ap.add_argument("--no-batch", action="store_true", help="skip the Dask batch runs")
     ap.add_argument("--batch-n", type=int, default=20)
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    ap.add_argument("--child", nargs=5, metavar=("IMAGE", "OUT", "TILE", "OVERLAP", "SCENE_MAX"),
+    ap.add_argument("--child", nargs=6, metavar=("IMAGE", "OUT", "TILE", "OVERLAP", "SCENE_MAX", "MODE"),
                     help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
-        image, out, tile, ov, smax = args.child
-        _child(image, out, int(tile), int(ov), int(smax))
+        image, out, tile, ov, smax, mode = args.child
+        _child(image, out, int(tile), int(ov), int(smax), mode)
         return
     work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="coastforge_scale_"))
     work.mkdir(parents=True, exist_ok=True)
@@ -355,6 +421,9 @@ def main(argv=None) -> None:
     if not args.no_sizes:
         sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
         figures["sizes"] = bench_sizes(work, sizes, args.tile, args.overlap, args.scene_max, args.timeout, args.json)
+    if not args.no_per_pixel:
+        figures["per_pixel"] = bench_per_pixel(work, args.whole_size, args.tiled_size, args.tile, args.overlap,
+                                               args.scene_max, args.timeout)
     if not args.no_batch:
         figures["batch"] = bench_batch(work, args.batch_n)
     if args.json:
