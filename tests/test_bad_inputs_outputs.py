@@ -336,7 +336,7 @@ def test_os_errors_name_the_path(case, images, tmp_path, monkeypatch):
 
 
 def test_an_unexpected_error_is_one_line_and_a_log(images, tmp_path, monkeypatch):
-    from coastforge import pipeline
+    from coastforge.pipeline import chain as pipeline
 
     def bug(*a, **k):
         raise ZeroDivisionError("a bug (test)")

@@ -787,7 +787,7 @@ def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, mo
 def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):
     """A user library lacking a category borrows it from the kit built with ``config.library``; the report of
     a scene rebuilt later opens the kit its run used (from the scene's provenance)."""
-    from coastforge import pipeline
+    from coastforge.pipeline import chain as pipeline
     from coastforge.assets import library as lib_mod
     from coastforge.config import LibraryConfig
     from coastforge.report import _library_config

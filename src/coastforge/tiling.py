@@ -767,7 +767,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     """``run_generate``'s chain on a ``TiledImage``, written straight into ``req.out`` (no staging folder):
     for images too large to hold. Returns a ``pipeline.GenerateResult``."""
     from .config import validate_config
-    from .pipeline import run_chain
+    from .pipeline.chain import run_chain
     from .runtime import Timer
 
     validate_config(config)

@@ -20,13 +20,13 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from . import __version__
-from .classes import PAVED, WATER
-from .config import Config, LibraryConfig
-from .fsio import atomic_write_text
-from .runtime import Background, Job, SideProcess, Timer
-from .scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
-from .types import ClassMap, Detection, GeoImage, Grid, HeightMap
+from .. import __version__
+from ..classes import PAVED, WATER
+from ..config import Config, LibraryConfig
+from ..fsio import atomic_write_text
+from ..runtime import Background, Job, SideProcess, Timer
+from ..scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
+from ..types import ClassMap, Detection, GeoImage, Grid, HeightMap
 
 Progress = Callable[[str, float], None]  # (stage name, fraction done)
 
@@ -117,7 +117,7 @@ def fill_under_objects(class_map: ClassMap, dets: list[Detection], margin_px: fl
 
 def _load_library(path: str | None, config: LibraryConfig = LibraryConfig()):
     """The library at ``path``, else the starter kit built with ``config`` (a built library keeps its own)."""
-    from .assets import library as lib_mod
+    from ..assets import library as lib_mod
 
     return lib_mod.Library.load(path) if path else lib_mod.default_library(config)
 
@@ -126,7 +126,7 @@ def fallback_kit(library, path: str | None, config: LibraryConfig = LibraryConfi
     """``(starter kit, categories it stands in for)`` when the user's library (``path``) lacks asset
     categories a scene may need, else ``(None, ())``: a missing category never aborts a run. The kit is
     built with ``config``."""
-    from .classes import ASSET_CATEGORIES
+    from ..classes import ASSET_CATEGORIES
 
     if path is None:
         return None, ()
@@ -134,13 +134,13 @@ def fallback_kit(library, path: str | None, config: LibraryConfig = LibraryConfi
     missing = tuple(c for c in ASSET_CATEGORIES if c not in have)
     if not missing:
         return None, ()
-    from .assets.library import default_library
+    from ..assets.library import default_library
 
     return default_library(config), missing
 
 
 def fallback_warning(path: str | None, missing: tuple[str, ...]):
-    from .selfcheck import SceneWarning
+    from ..selfcheck import SceneWarning
 
     return SceneWarning("library_fallback", f"The library {path} has no {', '.join(missing)} asset; the starter "
                         "kit's were used for these categories.",
@@ -166,7 +166,7 @@ def _pier_assets(library):
 def place_decisions(decisions, dets: list[Detection], library, grid, config: Config, height, kit=None) -> list:
     """Scene objects for the matched detections, ids numbered per category (``boat_000``, ...); ``kit``:
     the fallback library of the categories ``library`` lacks."""
-    from .placement import place
+    from ..placement import place
 
     assets = {a.id: a for a in (kit.assets if kit is not None else ())}
     assets.update({a.id: a for a in library.assets})
@@ -200,7 +200,7 @@ class BoxFootprint:
 
 def detection_footprints(dets: list[Detection], grid) -> list[BoxFootprint]:
     """The boxes of the detections that become placed objects (boats, vehicles, buoys)."""
-    from .placement import box_in_metres
+    from ..placement import box_in_metres
 
     out = []
     for d in dets:
@@ -244,10 +244,10 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     """Run the whole pipeline into ``req.out``, all-or-nothing: everything is written into a staging folder
     beside it and swapped into place only once the scene, its exports and its report are complete (a
     failed or killed run leaves ``req.out`` as it was). Inputs are checked before the first write."""
-    from . import tiling
-    from .config import validate_config
-    from .fsio import output_folder
-    from .terrain.dem import DemSource
+    from .. import tiling
+    from ..config import validate_config
+    from ..fsio import output_folder
+    from ..terrain.dem import DemSource
 
     validate_config(config)  # a Config built in code gets the checks load_config makes
     check_library_path(req.library)
@@ -270,8 +270,8 @@ def check_dems(req: GenerateRequest, image) -> None:
     front end (anything with the image's ``grid``), or None to read the georeference from the file."""
     if not req.dems:
         return
-    from .errors import InputError
-    from .terrain.dem import check_dem_files
+    from ..errors import InputError
+    from ..terrain.dem import check_dem_files
 
     check_dem_files(req.dems)
     if image is not None:
@@ -291,7 +291,7 @@ def check_library_path(path: str | None) -> None:
     """Refuse, before any work, a ``--library`` that does not exist or is not a library."""
     if path is None:
         return
-    from .errors import LibraryError
+    from ..errors import LibraryError
 
     p = Path(path)
     if not p.exists():
@@ -377,7 +377,7 @@ class WholeImage:
 
     @classmethod
     def read(cls, req: GenerateRequest, config: Config) -> "WholeImage":
-        from .io import read_image
+        from ..io import read_image
 
         return cls(read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config))
 
@@ -406,17 +406,17 @@ class WholeImage:
         return {}
 
     def segment(self, config: Config, progress: Progress | None) -> ClassMap:
-        from .segmentation import segment
+        from ..segmentation import segment
 
         return segment(self.image, config.segment, seed=config.seed)
 
     def detect(self, class_map: ClassMap, config: Config, progress: Progress | None, side: SideProcess | None,
                side_queued: Callable[[], None]) -> tuple[list[Detection], ClassMap, dict]:
-        from .detection import detect
+        from ..detection import detect
 
         opts = {}
         if side is not None and config.detect.backend == "hybrid":  # its classical half runs in the side process
-            from .detection.hybrid import classical_part
+            from ..detection.hybrid import classical_part
 
             opts["classical_dets"] = side.submit(classical_part, self.image, class_map, config.detect, config.seed)
         side_queued()
@@ -431,7 +431,7 @@ class WholeImage:
         return partial(match_in_image, self.image)
 
     def piers(self, dets: list[Detection], class_map: ClassMap, walkway, finger, config) -> tuple[list, dict]:
-        from .piers import build_piers
+        from ..piers import build_piers
 
         pr = build_piers(dets, class_map, walkway, finger, config)
         return list(pr.objects), pr.report
@@ -439,7 +439,7 @@ class WholeImage:
 
 def match_in_image(image: GeoImage, dets: list[Detection], library, config: Config, kit=None) -> list:
     """``matching.match_detections`` on an image in memory (``kit``: the fallback library)."""
-    from .matching import match_detections
+    from ..matching import match_detections
 
     return match_detections(image, dets, library, config.match, config.seed, fallback=kit)
 
@@ -465,10 +465,10 @@ def _stages(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, ti
             side: SideProcess | None) -> GenerateResult:
     """segment → detect (reconciled with the class map; on the scene grid) → self-check → clean → terrain →
     piers → vegetation → match and placement → scene files → exports → report → scene.json."""
-    from .piers import set_deck_heights
-    from .selfcheck import check_scene
-    from .terrain import estimate_terrain
-    from .vegetation import scatter
+    from ..piers import set_deck_heights
+    from ..selfcheck import check_scene
+    from ..terrain import estimate_terrain
+    from ..vegetation import scatter
 
     # shapely is imported by the background threads (matching, the report) and by this one (piers): a
     # package whose modules import each other, imported by two threads at once, can hand one of them a
@@ -560,7 +560,7 @@ def _stages(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, ti
         timings["total"] = round(sum(timer.t.values()), 3)
         exports: dict = {}
         if req.exports:  # exporters read the scene folder: complete it first
-            from .export import export_scene
+            from ..export import export_scene
 
             bg.wait()
             scene_path = save_scene(_with_timings(scene, timings, timer, bg), out, rasters=False)
@@ -591,8 +591,8 @@ def _with_timings(scene: Scene, timings: dict, timer: Timer, bg: "Background") -
 def _report_terrain(ids: np.ndarray, z_m: np.ndarray, grid, seed: int):
     """The terrain layer of the report's render from above, or None (the report then renders it itself)."""
     try:
-        from .render import scene_terrain_layer
-        from .report import top_gsd
+        from ..render import scene_terrain_layer
+        from ..report import top_gsd
 
         return scene_terrain_layer(ids.astype(np.uint8), z_m.astype(np.float32), grid.extent_m, 0.0,
                                    top_gsd(grid.gsd_m, grid.extent_m), seed=seed)
@@ -629,9 +629,9 @@ def write_scene_files(bg: "Background", out: Path, req: GenerateRequest, seed: i
 def write_instances(scene: Scene, out: Path) -> Path:
     """``instances.json`` beside scene.json: the scene's one label table (DESIGN.md §3), the same one every
     export carries (its objects never change after this point: timings only touch the provenance)."""
-    from .export import INSTANCES_FILE
-    from .export.labels import instances_json
-    from .fsio import atomic_write_bytes
+    from ..export import INSTANCES_FILE
+    from ..export.labels import instances_json
+    from ..fsio import atomic_write_bytes
 
     return atomic_write_bytes(out / INSTANCES_FILE, instances_json(scene))
 
@@ -663,7 +663,7 @@ def make_report(req: GenerateRequest, out: Path, timings: dict, scene: Scene | N
     if not req.report:
         return None
     try:
-        from .report import build_report
+        from ..report import build_report
     except ImportError:
         return None
     t0 = time.perf_counter()
@@ -684,10 +684,10 @@ def _side_warm_up() -> None:
     """Imports the side process needs first, done while the main process segments."""
     import cv2  # noqa: F401
 
-    from . import matching  # noqa: F401
-    from .assets import library  # noqa: F401
-    from .detection import classical, hybrid  # noqa: F401
-    from .segmentation import clean  # noqa: F401
+    from .. import matching  # noqa: F401
+    from ..assets import library  # noqa: F401
+    from ..detection import classical, hybrid  # noqa: F401
+    from ..segmentation import clean  # noqa: F401
 
 
 _HERE: dict = {}  # the side process's own library, kept between its jobs
@@ -721,8 +721,8 @@ def _match_job(match: Callable, library_path: str | None, dets: list[Detection],
 def _write_cleaned(path: Path, image: GeoImage, dets: list[Detection], class_map: ClassMap, seed: int) -> np.ndarray:
     """The inpainted image (boats, vehicles and buoys removed; piers stay), written as a PNG and returned (the
     report shows it); a module-level function so a side process can run it."""
-    from .fsio import write_png
-    from .segmentation.clean import clean_image
+    from ..fsio import write_png
+    from ..segmentation.clean import clean_image
 
     rgb = clean_image(image, dets, class_map, seed)
     write_png(path, rgb)
@@ -734,8 +734,8 @@ def _write_segment_outputs(bg: Background, out: Path, front: FrontEnd, class_map
     """detections.json now (``dets``, in input pixels); the cleaned image (transient objects removed: no later
     stage reads it, only the report) and the segmentation rasters (previews, paint-layer weights, biome map)
     on the scene grid (``class_map``, ``s_dets``) in the background."""
-    from .detection import detections_to_json
-    from .segmentation.outputs import write_segmentation
+    from ..detection import detections_to_json
+    from ..segmentation.outputs import write_segmentation
 
     g = front.grid
     atomic_write_text(out / "detections.json", detections_to_json(dets, g.gsd_m, (g.width_px, g.height_px),
@@ -750,14 +750,14 @@ def _write_segment_outputs(bg: Background, out: Path, front: FrontEnd, class_map
 
 def _write_terrain_outputs(bg: Background, out: Path, terrain) -> None:
     """Hillshade, shore types and cross-sections, in the background."""
-    from .terrain.outputs import write_terrain_outputs
+    from ..terrain.outputs import write_terrain_outputs
 
     bg.submit(Job.TERRAIN_OUTPUTS, write_terrain_outputs, out / "terrain_outputs", terrain, low=True)
 
 
 def _write_vegetation_outputs(bg: Background, out: Path, veg) -> None:
     """The 8-bit PCG masks, one file per rule."""
-    from .fsio import write_png
+    from ..fsio import write_png
 
     def masks():
         for name, mask in veg.masks.items():
