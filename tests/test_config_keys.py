@@ -767,7 +767,7 @@ SMALL_KIT = dict(lightings=1, paint_variants=False, query_view_gsds_m=(0.2,), cr
 def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, monkeypatch):
     """Without --library, generate matches against the starter kit built with ``config.library``: in its
     threads and in its side process (which would build a kit of its own from other settings)."""
-    from coastforge import runtime
+    from coastforge.pipeline import runtime
     from coastforge.assets.library import _config_dict
     from coastforge.config import LibraryConfig
     from coastforge.pipeline import GenerateRequest, run_generate

@@ -85,7 +85,7 @@ def test_a_failing_background_job_fails_generate(level, tmp_path, monkeypatch):
 
 def test_side_process_gives_the_same_cleaned_image_and_report(level, tmp_path, monkeypatch):
     """The spawned side process (the CLI's default on big images) writes what the threads write."""
-    from coastforge import runtime
+    from coastforge.pipeline import runtime
     from coastforge.pipeline import run_generate
 
     monkeypatch.setattr(runtime, "SIDE_PROCESS_MIN_PX", 0)
@@ -118,7 +118,7 @@ def test_work_for_a_dead_side_process_is_redone_here():
     from concurrent.futures import Future
     from concurrent.futures.process import BrokenProcessPool
 
-    from coastforge.runtime import SideProcess
+    from coastforge.pipeline.runtime import SideProcess
 
     class DeadPool:
         def submit(self, fn, *args):
@@ -181,7 +181,7 @@ def test_low_priority_background_jobs_run_at_a_higher_nice_value():
     import os
     import threading
 
-    from coastforge.runtime import Background, Job
+    from coastforge.pipeline.runtime import Background, Job
 
     def nice():
         return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
@@ -195,7 +195,7 @@ def test_low_priority_background_jobs_run_at_a_higher_nice_value():
 def test_background_job_names_are_typed():
     """A misspelt job name is an error, at submit and at result; it never waits for every job instead."""
     from coastforge.pipeline import report_waiter
-    from coastforge.runtime import Background, Job
+    from coastforge.pipeline.runtime import Background, Job
 
     with Background() as bg:
         bg.submit("cleaned", divmod, 7, 2)  # a job's own name is accepted

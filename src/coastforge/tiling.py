@@ -768,7 +768,7 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
     for images too large to hold. Returns a ``pipeline.GenerateResult``."""
     from .config import validate_config
     from .pipeline.chain import run_chain
-    from .runtime import Timer
+    from .pipeline.runtime import Timer
 
     validate_config(config)
     timer = Timer(progress)

@@ -24,7 +24,7 @@ from .. import __version__
 from ..classes import PAVED, WATER
 from ..config import Config, LibraryConfig
 from ..fsio import atomic_write_text
-from ..runtime import Background, Job, SideProcess, Timer
+from .runtime import Background, Job, SideProcess, Timer
 from ..scene import Scene, SceneObject, load_scene, save_scene, save_scene_rasters
 from ..types import ClassMap, Detection, GeoImage, Grid, HeightMap
 
