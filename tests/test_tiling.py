@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from coastforge import tiling
+from coastforge.pipeline import tiling
 from coastforge.classes import ASPHALT, GRASS, WATER
 from coastforge.config import Config, DetectConfig, SegmentConfig, TerrainConfig
 from coastforge.errors import ConfigError, InputError

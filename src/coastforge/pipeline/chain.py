@@ -244,7 +244,7 @@ def run_generate(req: GenerateRequest, config: Config, progress: Progress | None
     """Run the whole pipeline into ``req.out``, all-or-nothing: everything is written into a staging folder
     beside it and swapped into place only once the scene, its exports and its report are complete (a
     failed or killed run leaves ``req.out`` as it was). Inputs are checked before the first write."""
-    from .. import tiling
+    from . import tiling
     from ..config import validate_config
     from ..fsio import output_folder
     from ..terrain.dem import DemSource

@@ -29,10 +29,10 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from .classes import N_CLASSES
-from .config import Config, DetectConfig, IOConfig, SegmentConfig, TerrainConfig
-from .errors import ConfigError, InputError
-from .types import ClassMap, Detection, GeoImage, Grid
+from ..classes import N_CLASSES
+from ..config import Config, DetectConfig, IOConfig, SegmentConfig, TerrainConfig
+from ..errors import ConfigError, InputError
+from ..types import ClassMap, Detection, GeoImage, Grid
 
 TILING_THRESHOLD_PX = 4096 * 4096  # larger images are read by windows (TiledImage)
 PIER_CATEGORIES = ("pier_walkway", "pier_finger")
@@ -116,7 +116,7 @@ class Source:
 def open_source(path: str | Path, gsd_m: float | None = None, size_m: tuple[float, float] | None = None,
                 config: IOConfig | None = None, overview_px: int = 2048) -> Source:
     """Check the image like ``coastforge.io.read_image`` does and resolve its grid without reading it whole."""
-    from . import io as cio
+    from .. import io as cio
 
     cfg = config or IOConfig()
     path = Path(path)
@@ -229,7 +229,7 @@ def segment_tiled(path, grid: Grid | None = None, config: SegmentConfig | None =
 
     ``segmenter(image, seed) -> ClassMap`` replaces the registry backend (tests, custom models). ``out``:
     write into a memory-mapped ``.npy`` file instead of RAM (for images whose ids do not fit)."""
-    from .segmentation import segment
+    from ..segmentation import segment
 
     src = _source(path, grid, source)
     cfg = config or SegmentConfig()
@@ -353,7 +353,7 @@ def merge_cut_fragments(dets: list[Detection], angle_tol_deg: float = 6.0) -> li
 
 
 def _merge_fragment_group(dets: list[Detection], angle_tol_deg: float) -> list[Detection]:
-    from .frames import direction_px, wrap_half_deg
+    from ..frames import direction_px, wrap_half_deg
 
     pending = list(dets)
     merged = True
@@ -397,7 +397,7 @@ def indexed_nms(dets: list[Detection], iou_threshold: float = 0.3, ioa_threshold
     """``detection.nms.rotated_nms`` (class-aware) with the kept boxes in a grid index: the same greedy
     order and tests, so the same result, but each box is compared with the kept boxes near it only
     (``rotated_nms`` scans every kept box for every box: quadratic in the area of a large image)."""
-    from .detection.nms import polygon_ioa, polygon_iou
+    from ..detection.nms import polygon_ioa, polygon_iou
 
     if not dets:
         return []
@@ -464,7 +464,7 @@ def detect_tiled(path, grid: Grid | None = None, config: DetectConfig | None = N
     An object is found whole when ``overlap_px`` ≥ half its length; longer pier walkways are joined.
     ``side`` (a ``runtime.SideProcess``): the hybrid detector's classical half of each tile runs there,
     beside its network here, as in a whole-image run."""
-    from .detection import detect
+    from ..detection import detect
 
     src = _source(path, grid, source)
     cfg = config or DetectConfig()
@@ -486,7 +486,7 @@ def detect_tiled(path, grid: Grid | None = None, config: DetectConfig | None = N
         else:
             opts = {}
             if split:
-                from .detection.hybrid import classical_part
+                from ..detection.hybrid import classical_part
 
                 opts["classical_dets"] = side.submit(classical_part, img, cm, cfg, seed)
             dets = detect(img, cfg, class_map=cm, backend=backend, seed=seed, **opts)
@@ -512,7 +512,7 @@ def terrain_tiled(class_ids: np.ndarray, grid: Grid, config: TerrainConfig | Non
     distance and the cores kept. Equals the untiled estimate where the nearest shoreline of every pixel
     lies within the overlap (the seabed beyond three depth scales is at its maximum depth anyway);
     the ±``noise_m`` variation is seeded per tile, so it is not continuous across seams."""
-    from .terrain import estimate_terrain
+    from ..terrain import estimate_terrain
 
     cfg = config or TerrainConfig()
     H, W = class_ids.shape
@@ -571,7 +571,7 @@ def piers_tiled(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     ``margin_m`` around it (default: 8 x ``piers.max_gap_m`` + 30 m, the reach of its connectors) and a
     class-map crop as context, and keeps the segments whose position falls in its core, so every segment is
     emitted once. Returns (objects, report). Detections are in the class map's pixels."""
-    from .piers import build_piers
+    from ..piers import build_piers
 
     g = class_map.grid
     piers = [d for d in dets if d.category in PIER_CATEGORIES]
@@ -641,7 +641,7 @@ def match_tiled(source: Source, tile_px: int, dets: list[Detection], library, co
     with a window just big enough for its crops (``kit``: the fallback library)."""
     from rasterio.windows import Window
 
-    from .matching import ASSET_CATEGORIES_FOR, match_detections
+    from ..matching import ASSET_CATEGORIES_FOR, match_detections
 
     W, H = source.grid.width_px, source.grid.height_px
     groups: dict[tuple[int, int], list[int]] = {}
@@ -688,7 +688,7 @@ class TiledImage:
     def open(cls, req, config: Config, tile_px: int = 2048, overlap_px: int = 256,
              scene_max_px: int = 4096) -> "TiledImage":
         """Open and check ``req.image`` (``open_source``), check the run's memory and read the preview."""
-        from .io import check_memory
+        from ..io import check_memory
 
         _check_tiling(tile_px, overlap_px)
         if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
@@ -743,7 +743,7 @@ class TiledImage:
 
     def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
                       config: Config) -> tuple[ClassMap, list[Detection], dict]:
-        from .consistency import water_from_boats
+        from ..consistency import water_from_boats
 
         sg = self.scene_grid
         f = self.grid.width_px / sg.width_px
@@ -766,9 +766,9 @@ def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, over
                    scene_max_px: int = 4096):
     """``run_generate``'s chain on a ``TiledImage``, written straight into ``req.out`` (no staging folder):
     for images too large to hold. Returns a ``pipeline.GenerateResult``."""
-    from .config import validate_config
-    from .pipeline.chain import run_chain
-    from .pipeline.runtime import Timer
+    from ..config import validate_config
+    from .chain import run_chain
+    from .runtime import Timer
 
     validate_config(config)
     timer = Timer(progress)
