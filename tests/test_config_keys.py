@@ -787,17 +787,17 @@ def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, mo
 def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):
     """A user library lacking a category borrows it from the kit built with ``config.library``; the report of
     a scene rebuilt later opens the kit its run used (from the scene's provenance)."""
-    from coastforge.pipeline import chain as pipeline
     from coastforge.assets import library as lib_mod
     from coastforge.config import LibraryConfig
+    from coastforge.pipeline import libraries
     from coastforge.report import _library_config
 
     asked = []
     monkeypatch.setattr(lib_mod, "default_library", lambda config=LibraryConfig(): asked.append(config) or "kit")
     small = LibraryConfig(**SMALL_KIT)
     only_boats = type("Lib", (), {"assets": [type("A", (), {"category": "boat"})()]})()
-    assert pipeline.fallback_kit(only_boats, "my_lib", small)[0] == "kit" and asked == [small]
-    assert pipeline._load_library(None, small) == "kit" and asked == [small, small]
+    assert libraries.fallback_kit(only_boats, "my_lib", small)[0] == "kit" and asked == [small]
+    assert libraries.load_library(None, small) == "kit" and asked == [small, small]
     prov = {"config": Config(library=small).to_dict()}
     assert _library_config(prov) == small
     assert _library_config({}) == _library_config({"config": {"library": {"view_size_px": "big"}}}) == LibraryConfig()

@@ -7,13 +7,13 @@ import cv2
 import numpy as np
 import pytest
 
-from coastforge.pipeline import tiling
 from coastforge.classes import ASPHALT, GRASS, WATER
 from coastforge.config import Config, DetectConfig, SegmentConfig, TerrainConfig
 from coastforge.errors import ConfigError, InputError
 from coastforge.frames import yaw_from_direction_px
 from coastforge.fsio import write_png
 from coastforge.io import read_image
+from coastforge.pipeline import generate_tiled, tiling
 from coastforge.types import ClassMap, Detection, GeoImage, Grid
 
 TILE, OVERLAP = 256, 64
@@ -358,7 +358,7 @@ def test_generate_tiled_writes_the_scene_contract(scene_png, tmp_path):
 
     out = tmp_path / "tiled"
     req = GenerateRequest(image=str(scene_png), out=str(out), gsd_m=0.2, report=False, exports=("ue5_tiles",))
-    res = tiling.generate_tiled(req, Config(), tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
+    res = generate_tiled(req, Config(), tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
     scene = load_scene(res.scene_path)
     assert scene.height.shape == scene.classes.shape == (300, 300)
     assert scene.extent_m == pytest.approx((120.0, 120.0)) and scene.gsd_m == pytest.approx(0.2)
@@ -384,13 +384,13 @@ def test_generate_tiled_reconciles_and_self_checks_like_a_whole_image_run(scene_
 
     from coastforge.pipeline import GenerateRequest
 
-    monkeypatch.setattr(tiling, "segment_tiled", lambda src, **kw: np.full(
+    monkeypatch.setattr("coastforge.pipeline.tiled.segment_tiled", lambda src, **kw: np.full(
         (src.grid.height_px, src.grid.width_px), ASPHALT, np.uint8))
     rows = [Detection("boat", 0.9, 300.0 + 14.0 * k, 300.0 + 40.0 * r, 30.0, 10.0, 90.0)
             for k in range(6) for r in range(2)]  # two bow-in rows of six 6 m boats (0.2 m/px)
-    monkeypatch.setattr(tiling, "detect_tiled", lambda src, **kw: list(rows))
+    monkeypatch.setattr("coastforge.pipeline.tiled.detect_tiled", lambda src, **kw: list(rows))
     req = GenerateRequest(image=str(scene_png), out=str(tmp_path / "tiled"), gsd_m=0.2, report=False)
-    res = tiling.generate_tiled(req, Config(), tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
+    res = generate_tiled(req, Config(), tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
     prov = json.loads(res.scene_path.read_text())["provenance"]
     assert prov["consistency"]["boat_clusters_made_water"] == 1 and prov["consistency"]["water_from_boats_m2"] > 100
     from coastforge.scene import load_scene
@@ -415,7 +415,7 @@ def test_tiled_and_whole_image_runs_share_one_stage_order(scene_png, tmp_path):
 
     req = GenerateRequest(image=str(scene_png), out=str(tmp_path / "whole"), gsd_m=0.2, report=False)
     whole = run_generate(req, Config(), record("whole"))
-    tiled = tiling.generate_tiled(GenerateRequest(image=str(scene_png), out=str(tmp_path / "tiled"), gsd_m=0.2,
+    tiled = generate_tiled(GenerateRequest(image=str(scene_png), out=str(tmp_path / "tiled"), gsd_m=0.2,
                                                   report=False), Config(), record("tiled"),
                                   tile_px=320, overlap_px=OVERLAP, scene_max_px=300)
     assert started["whole"] == started["tiled"]

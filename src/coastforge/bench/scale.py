@@ -141,7 +141,7 @@ def _child(image: str, out: str, tile_px: int, overlap_px: int, scene_max_px: in
 
     from ..config import load_config
     from ..pipeline import GenerateRequest, run_generate
-    from ..pipeline.tiling import generate_tiled
+    from ..pipeline import generate_tiled
 
     t0 = time.perf_counter()
 

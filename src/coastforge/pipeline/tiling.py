@@ -12,10 +12,9 @@ segmenter) equals it away from the seams as far as its context reaches.
   cut by a tile edge loses to the whole box the neighbouring tile holds; pier walkways longer than the
   overlap are joined from their cut pieces.
 - ``terrain_tiled`` runs the terrain per tile with an overlap of the terrain's influence distance.
-- ``TiledImage`` is the front end ``pipeline.run_chain`` runs such images through (the same stages in the
-  same order as a whole image): full-resolution classes and detections, and the scene rasters (terrain,
-  classes, vegetation) on a scene grid of at most ``scene_max_px`` per side. ``run_generate`` picks it
-  for images over ``TILING_THRESHOLD_PX`` (``needs_tiling``); ``generate_tiled`` runs it with other tile sizes.
+- ``piers_tiled`` and ``match_tiled`` run pier chaining and matching region by region.
+
+``tiled.TiledImage``, the chain's front end for such images, runs its stages with these.
 """
 
 from __future__ import annotations
@@ -23,7 +22,6 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, replace
-from functools import partial
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -34,7 +32,6 @@ from ..config import Config, DetectConfig, IOConfig, SegmentConfig, TerrainConfi
 from ..errors import ConfigError, InputError
 from ..types import ClassMap, Detection, GeoImage, Grid
 
-TILING_THRESHOLD_PX = 4096 * 4096  # larger images are read by windows (TiledImage)
 PIER_CATEGORIES = ("pier_walkway", "pier_finger")
 
 
@@ -68,7 +65,7 @@ class Tile:
         return (slice(r0, r1), slice(c0, c1))
 
 
-def _check_tiling(tile_px: int, overlap_px: int) -> None:
+def check_tiling(tile_px: int, overlap_px: int) -> None:
     if not (isinstance(tile_px, int) and tile_px >= 32):
         raise ConfigError(f"tile_px = {tile_px!r} must be an integer ≥ 32 (e.g. 2048)")
     if not (isinstance(overlap_px, int) and 0 <= overlap_px <= 4 * tile_px):
@@ -78,7 +75,7 @@ def _check_tiling(tile_px: int, overlap_px: int) -> None:
 
 def iter_windows(width: int, height: int, tile_px: int, overlap_px: int) -> Iterator[Tile]:
     """Tiles in row-major order whose cores partition the ``width`` x ``height`` image."""
-    _check_tiling(tile_px, overlap_px)
+    check_tiling(tile_px, overlap_px)
     if width <= 0 or height <= 0:
         raise InputError(f"cannot tile an image of {width}x{height} px")
     nx, ny = -(-width // tile_px), -(-height // tile_px)
@@ -562,7 +559,7 @@ def scale_detection(d: Detection, f: float) -> Detection:
                    width_px=max(d.width_px / f, 1e-3), mask=None, mask_origin_px=None)
 
 
-# ---------------------------------------------------------------------------------------- generate
+# ------------------------------------------------------------------------------- later stages
 
 def piers_tiled(dets: list[Detection], class_map: ClassMap, walkway_asset, finger_asset, config,
                 tile_px: int = 1024, margin_m: float | None = None):
@@ -620,22 +617,6 @@ def piers_tiled(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     return objects, report
 
 
-def needs_tiling(image: str | Path, threshold_px: int = TILING_THRESHOLD_PX) -> bool:
-    """True when the image has more pixels than ``threshold_px`` (default 4096²): use ``generate_tiled``."""
-    import rasterio
-
-    p = Path(image)
-    if not p.is_file():
-        return False  # read_image reports the missing file with its own message
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with rasterio.open(p) as src:
-                return src.width * src.height > threshold_px
-    except Exception:  # noqa: BLE001 - unreadable files are reported by the normal reader
-        return False
-
-
 def match_tiled(source: Source, tile_px: int, dets: list[Detection], library, config: Config, kit=None) -> list:
     """``matching.match_detections`` by windows: the detections (input pixels) grouped by tile, each group
     with a window just big enough for its crops (``kit``: the fallback library)."""
@@ -661,119 +642,3 @@ def match_tiled(source: Source, tile_px: int, dets: list[Detection], library, co
         del img
     decisions.sort(key=lambda m: m.index)
     return decisions
-
-
-def _tile_progress(progress, stage: str):
-    """Per-tile progress of a stage as ``progress(stage, k / n)`` (strictly between 0 and 1 until the end)."""
-    if progress is None:
-        return None
-    return lambda k, n: progress(stage, min(k / max(n, 1), 0.999))
-
-
-@dataclass(frozen=True)
-class TiledImage:
-    """A large image as ``pipeline.run_chain`` sees it: segmented and detected by windows at full resolution
-    (merged across the seams), the later stages on a scene grid of at most ``scene_max_px`` per side (the
-    classes block-majority downsampled, the detections scaled, the moored boats' water decided on the
-    whole scene grid)."""
-
-    source: Source
-    scene_grid: Grid
-    preview: GeoImage  # the image averaged down to the scene grid
-    tile_px: int
-    overlap_px: int
-    detect_overlap_px: int
-
-    @classmethod
-    def open(cls, req, config: Config, tile_px: int = 2048, overlap_px: int = 256,
-             scene_max_px: int = 4096) -> "TiledImage":
-        """Open and check ``req.image`` (``open_source``), check the run's memory and read the preview."""
-        from ..io import check_memory
-
-        _check_tiling(tile_px, overlap_px)
-        if not (isinstance(scene_max_px, int) and scene_max_px >= 127):
-            raise ConfigError(f"scene_max_px = {scene_max_px!r} must be an integer ≥ 127 (e.g. 4096)")
-        src = open_source(req.image, req.gsd_m, req.size_m, config.io)
-        W, H = src.grid.width_px, src.grid.height_px
-        f = max(1.0, max(W, H) / scene_max_px)
-        sw, sh = max(8, int(round(W / f))), max(8, int(round(H / f)))
-        # the stages after segmentation and detection run on the scene grid (tiles are bounded), beside the
-        # full-resolution class ids (1 byte per input pixel)
-        check_memory(req.image, sw, sh, src.grid.gsd_m * W / sw, config.io, stages=config,
-                     read_bytes_per_px=W * H / (sw * sh), tiled=True)
-        preview = read_overview(src, sw, sh)
-        # an object is whole in some tile when the overlap is at least half its length
-        half_boat_px = int(math.ceil(config.detect.max_boat_length_m / 2 / src.grid.gsd_m))
-        det_ov = max(overlap_px, min(tile_px, half_boat_px + 8))
-        return cls(src, preview.grid, preview, tile_px, overlap_px, det_ov)
-
-    @property
-    def grid(self) -> Grid:
-        return self.source.grid
-
-    @property
-    def report_image(self) -> None:
-        return None  # the report reads the input itself
-
-    @property
-    def detections_provenance(self) -> dict:
-        return {"tiled": True, "tile_px": self.tile_px}
-
-    @property
-    def provenance(self) -> dict:
-        sg = self.scene_grid
-        return {"tiled": {"tile_px": self.tile_px, "overlap_px": self.overlap_px,
-                          "detect_overlap_px": self.detect_overlap_px, "scene_grid_px": [sg.width_px, sg.height_px],
-                          "scene_gsd_m": sg.gsd_m}}
-
-    def segment(self, config: Config, progress) -> ClassMap:
-        ids = segment_tiled(self.source, config=config.segment, tile_px=self.tile_px, overlap_px=self.overlap_px,
-                            seed=config.seed, progress=_tile_progress(progress, "segment"))
-        return ClassMap(ids, self.grid)
-
-    def detect(self, class_map: ClassMap, config: Config, progress, side,
-               side_queued) -> tuple[list[Detection], ClassMap, dict]:
-        """Each tile's detections are reconciled with its own class map; the corrected maps are dropped (the
-        moored boats' water is decided on the whole scene grid, ``to_scene_grid``)."""
-        side_queued()
-        dets = detect_tiled(self.source, config=config.detect, class_ids=class_map.ids, tile_px=self.tile_px,
-                            overlap_px=self.detect_overlap_px, seed=config.seed,
-                            progress=_tile_progress(progress, "detect"), side=side)
-        return dets, class_map, {}
-
-    def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
-                      config: Config) -> tuple[ClassMap, list[Detection], dict]:
-        from ..consistency import water_from_boats
-
-        sg = self.scene_grid
-        f = self.grid.width_px / sg.width_px
-        cm = ClassMap(downsample_classes(class_map.ids, sg.width_px, sg.height_px), sg)
-        s_dets = [scale_detection(d, f) for d in dets]
-        notes: dict = {}
-        if config.detect.boats_make_water:
-            # a marina cut by tile borders becomes water as in a whole-image run
-            cm, notes = water_from_boats(s_dets, cm, sg.gsd_m)
-        return cm, s_dets, notes
-
-    def matcher(self):
-        return partial(match_tiled, self.source, self.tile_px)
-
-    def piers(self, dets: list[Detection], class_map: ClassMap, walkway, finger, config) -> tuple[list, dict]:
-        return piers_tiled(dets, class_map, walkway, finger, config)
-
-
-def generate_tiled(req, config: Config, progress=None, tile_px: int = 2048, overlap_px: int = 256,
-                   scene_max_px: int = 4096):
-    """``run_generate``'s chain on a ``TiledImage``, written straight into ``req.out`` (no staging folder):
-    for images too large to hold. Returns a ``pipeline.GenerateResult``."""
-    from ..config import validate_config
-    from .chain import run_chain
-    from .runtime import Timer
-
-    validate_config(config)
-    timer = Timer(progress)
-    with timer.stage("read"):
-        front = TiledImage.open(req, config, tile_px, overlap_px, scene_max_px)
-    out = Path(req.out)  # every input check done: the first write here
-    out.mkdir(parents=True, exist_ok=True)
-    return run_chain(front, req, config, out, timer)
