@@ -252,8 +252,8 @@ def test_cli(tmp_path):
 def test_library_assets_fill_the_layout_roles(monkeypatch, tmp_path):
     import dataclasses
 
-    import coastforge.synth as synth
     from coastforge.assets.kit import kit_assets, load_kit_mesh
+    from coastforge.assets.library import Library
 
     class FakeLibrary:  # two boats and a car under new ids (meshes borrowed from the kit)
         def __init__(self):
@@ -267,7 +267,7 @@ def test_library_assets_fill_the_layout_roles(monkeypatch, tmp_path):
         def mesh(self, asset_id):
             return load_kit_mesh(asset_id[4:])
 
-    monkeypatch.setattr(synth, "_open_library", lambda library: FakeLibrary())
+    monkeypatch.setattr(Library, "load", classmethod(lambda cls, path, **kw: FakeLibrary()))
     r = synth_to_dir("pier_parking", 3, tmp_path / "lvl", gsds=(1.0,), library=tmp_path, **SMALL)
     truth = load_scene(r.truth_path)
     by_cat: dict[str, set] = {}

@@ -77,9 +77,10 @@ def asset_catalog(library: str | Path | None = None, rng: np.random.Generator | 
     kit = kit_catalog()
     if library is None:
         return kit
+    from .assets.library import Library
     from .synth_layout import AssetDims
 
-    lib = _open_library(library)
+    lib = Library.load(library)
     try:
         assets = [AssetDims(str(a.id), str(a.category), *map(float, a.dims_m),
                             float(getattr(a, "draft_m", 0.0)),
@@ -100,18 +101,6 @@ def asset_catalog(library: str | Path | None = None, rng: np.random.Generator | 
         near = [int(i) for i in order[:3] if err[i] <= err[order[0]] + math.log(1.25)]
         out[role] = cands[near[int(rng.integers(0, len(near)))]]
     return out
-
-
-def _open_library(library: str | Path):
-    """An asset library (``coastforge.assets.library.Library``); a clear error if this version has none."""
-    import importlib
-    import importlib.util
-
-    if importlib.util.find_spec("coastforge.assets.library") is None:
-        raise InputError(f"--library {library}: asset libraries are not available yet in this version of "
-                         "coastforge; omit --library to render with the starter kit")
-    mod = importlib.import_module("coastforge.assets.library")
-    return mod.Library.load(Path(library))
 
 
 # ---------------------------------------------------------------- rasters
@@ -453,6 +442,8 @@ def synth_many(presets: str | list[str], seed: int, out_dir: str | Path, gsds=DE
     if len(names) == 1:
         return [synth_to_dir(names[0], seed, out_dir, gsds, library, overwrite)]
     if library is not None:
-        _open_library(library)  # a bad --library fails before any folder is made
+        from .assets.library import Library
+
+        Library.load(library)  # a bad --library fails before any folder is made
     root = prepare_output_dir(out_dir, overwrite)
     return [synth_to_dir(n, seed, root / n, gsds, library, overwrite) for n in names]

@@ -28,9 +28,9 @@ def mesh_source(library: str | Path | None = None) -> Callable[[str], object]:
 
     if library is None:
         return load_kit_mesh
-    from .synth import _open_library
+    from .assets.library import Library
 
-    lib = _open_library(library)
+    lib = Library.load(library)
 
     def mesh(asset_id: str):
         return lib.mesh(asset_id) if asset_id in lib else load_kit_mesh(asset_id)

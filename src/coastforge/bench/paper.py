@@ -27,14 +27,15 @@ COLUMNS = ("n_truth", "gsd_m", "xy_rmse_m", "rotation_rmse_deg", "orientation_rm
 def check_benchmark(presets=None, gsds=(0.1, 0.2), library: str | None = None) -> tuple[list[str], tuple]:
     """The benchmark's levels and GSDs, checked before anything runs or is written (a bad level name or
     library would otherwise stop it after the first levels)."""
-    from ..synth import PRESETS, _open_library, check_preset, parse_gsds
+    from ..assets.library import Library
+    from ..synth import PRESETS, check_preset, parse_gsds
 
     presets = list(presets or PRESETS)
     for p in presets:
         check_preset(p)
     gsds = parse_gsds(gsds)
     if library is not None:
-        _open_library(library)
+        Library.load(library)
     return presets, gsds
 
 
