@@ -1,12 +1,5 @@
-"""Synthetic ground-truth coastal levels (``coastforge synth``): the benchmark's truth scenes.
-
-``synthesize(preset, seed)`` lays out a level (terrain classes, truth heights, piers, moored and
-anchored boats, parked cars, buoys, vegetation) and returns it as a ``Scene``; ``synth_to_dir`` also
-renders one aerial image per GSD and writes ``truth.json`` + rasters + ``inputs.json``.
-
-Modules: ``synth_layout`` (geometry and placement rules), ``synth_presets`` (the levels),
-``synth_terrain`` (the truth height model), ``synth_render`` (images with variety and clutter).
-"""
+"""A synthetic level: its layout (``presets``) rasterised into classes, its truth heights (``terrain``),
+its objects and vegetation as a ``Scene``; ``synth_to_dir`` renders it (``render``) and writes its files."""
 
 from __future__ import annotations
 
@@ -19,12 +12,12 @@ import numpy as np
 import shapely
 from shapely import affinity
 
-from . import __version__, frames
-from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, TREES, WATER
-from .errors import InputError
-from .rng import stage_rng
-from .scene import Scene, SceneObject, Vegetation
-from .synth_layout import BENCHMARK_MIX, Mix
+from .. import __version__, frames
+from ..classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, TREES, WATER
+from ..errors import InputError
+from ..rng import stage_rng
+from ..scene import Scene, SceneObject, Vegetation
+from ..synth_layout import BENCHMARK_MIX, Mix
 
 PRESETS: tuple[str, ...] = ("simple_pier_a", "simple_pier_b", "pier_parking", "marina", "lake_harbor",
                             "beach", "rocky_shore")
@@ -62,8 +55,8 @@ def check_preset(preset: str) -> str:
 
 def kit_catalog():
     """Asset id → ``AssetDims`` of the starter kit (the ids the layouts are written with)."""
-    from .assets.kit import kit_assets
-    from .synth_layout import AssetDims
+    from ..assets.kit import kit_assets
+    from ..synth_layout import AssetDims
 
     return {a.id: AssetDims(a.id, a.category, *map(float, a.dims_m), float(a.draft_m), bool(a.floating),
                             tuple(a.tags)) for a in kit_assets()}
@@ -77,8 +70,8 @@ def asset_catalog(library: str | Path | None = None, rng: np.random.Generator | 
     kit = kit_catalog()
     if library is None:
         return kit
-    from .assets.library import Library
-    from .synth_layout import AssetDims
+    from ..assets.library import Library
+    from ..synth_layout import AssetDims
 
     lib = Library.load(library)
     try:
@@ -307,8 +300,8 @@ def synthesize_level(preset: str, seed: int, *, size_m: float | None = None, gri
     """Lay out and rasterize one level (see ``synthesize``), keeping the layout for the renderer.
 
     ``mix`` (default: the benchmark's) sets which asset types are drawn how often (``synth_layout.Mix``)."""
-    from .synth_presets import build_layout
-    from .synth_terrain import truth_heights
+    from ..synth_presets import build_layout
+    from ..synth_terrain import truth_heights
 
     check_preset(preset)
     if not (isinstance(grid_m, (int, float)) and 0.02 <= grid_m <= 2.0
@@ -393,9 +386,9 @@ def synth_to_dir(preset: str, seed: int, out_dir: str | Path, gsds=DEFAULT_GSDS,
     the images and inputs.json into ``out_dir`` (refused if not empty unless ``overwrite``)."""
     import json
 
-    from .fsio import atomic_write_text, prepare_output_dir, write_png
-    from .scene import save_scene
-    from .synth_render import mesh_source, render_level
+    from ..fsio import atomic_write_text, prepare_output_dir, write_png
+    from ..scene import save_scene
+    from ..synth_render import mesh_source, render_level
 
     check_preset(preset)
     gsds = parse_gsds(gsds)
@@ -433,7 +426,7 @@ def synth_to_dir(preset: str, seed: int, out_dir: str | Path, gsds=DEFAULT_GSDS,
 def synth_many(presets: str | list[str], seed: int, out_dir: str | Path, gsds=DEFAULT_GSDS,
                library: str | Path | None = None, overwrite: bool = False) -> list[SynthResult]:
     """``presets`` = a name, a list, or "all": one level per preset (in one subfolder each when several)."""
-    from .fsio import prepare_output_dir
+    from ..fsio import prepare_output_dir
 
     names = list(PRESETS) if presets == "all" else ([presets] if isinstance(presets, str) else list(presets))
     for n in names:
@@ -442,7 +435,7 @@ def synth_many(presets: str | list[str], seed: int, out_dir: str | Path, gsds=DE
     if len(names) == 1:
         return [synth_to_dir(names[0], seed, out_dir, gsds, library, overwrite)]
     if library is not None:
-        from .assets.library import Library
+        from ..assets.library import Library
 
         Library.load(library)  # a bad --library fails before any folder is made
     root = prepare_output_dir(out_dir, overwrite)
