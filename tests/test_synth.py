@@ -284,7 +284,7 @@ def test_training_mix_shows_the_rare_types_and_leaves_benchmark_levels_alone():
     benchmark's levels (default mix) never get the types they did not have before."""
     from collections import Counter
 
-    from coastforge.synth_layout import TRAINING_MIX
+    from coastforge.synth.layout import TRAINING_MIX
 
     bench, train = Counter(), Counter()
     for preset, seed in (("marina", 201), ("pier_parking", 202), ("marina", 203), ("lake_harbor", 204)):

@@ -14,7 +14,7 @@ import numpy as np
 from shapely.geometry import LineString, Point
 
 from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES
-from .synth_layout import (
+from .synth.layout import (
     BENCHMARK_MIX, AssetDims, Layout, Mix, PierSpec, add_anchored, add_buoy, add_parking, add_pier,
     add_street_parking, add_underway, obox, open_water_points, scatter_patches, wiggly_line,
 )

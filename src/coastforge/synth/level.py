@@ -17,7 +17,7 @@ from ..classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, TREES, WATER
 from ..errors import InputError
 from ..rng import stage_rng
 from ..scene import Scene, SceneObject, Vegetation
-from ..synth_layout import BENCHMARK_MIX, Mix
+from .layout import BENCHMARK_MIX, Mix
 
 PRESETS: tuple[str, ...] = ("simple_pier_a", "simple_pier_b", "pier_parking", "marina", "lake_harbor",
                             "beach", "rocky_shore")
@@ -56,7 +56,7 @@ def check_preset(preset: str) -> str:
 def kit_catalog():
     """Asset id → ``AssetDims`` of the starter kit (the ids the layouts are written with)."""
     from ..assets.kit import kit_assets
-    from ..synth_layout import AssetDims
+    from .layout import AssetDims
 
     return {a.id: AssetDims(a.id, a.category, *map(float, a.dims_m), float(a.draft_m), bool(a.floating),
                             tuple(a.tags)) for a in kit_assets()}
@@ -71,7 +71,7 @@ def asset_catalog(library: str | Path | None = None, rng: np.random.Generator | 
     if library is None:
         return kit
     from ..assets.library import Library
-    from ..synth_layout import AssetDims
+    from .layout import AssetDims
 
     lib = Library.load(library)
     try:

@@ -17,8 +17,8 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import unary_union
 
-from . import frames
-from .classes import ASPHALT, SIDEWALK
+from .. import frames
+from ..classes import ASPHALT, SIDEWALK
 
 # ---------------------------------------------------------------- asset dimensions
 
