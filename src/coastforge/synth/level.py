@@ -300,7 +300,7 @@ def synthesize_level(preset: str, seed: int, *, size_m: float | None = None, gri
     """Lay out and rasterize one level (see ``synthesize``), keeping the layout for the renderer.
 
     ``mix`` (default: the benchmark's) sets which asset types are drawn how often (``synth_layout.Mix``)."""
-    from ..synth_presets import build_layout
+    from .presets import build_layout
     from ..synth_terrain import truth_heights
 
     check_preset(preset)

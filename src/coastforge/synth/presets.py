@@ -13,12 +13,12 @@ from typing import Callable
 import numpy as np
 from shapely.geometry import LineString, Point
 
-from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES
-from .synth.layout import (
+from ..classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES
+from .layout import (
     BENCHMARK_MIX, AssetDims, Layout, Mix, PierSpec, add_anchored, add_buoy, add_parking, add_pier,
     add_street_parking, add_underway, obox, open_water_points, scatter_patches, wiggly_line,
 )
-from .synth_terrain import TruthTerrainParams
+from ..synth_terrain import TruthTerrainParams
 
 CRUISERS = ("sailboat", "cabin_cruiser", "fishing_boat", "runabout", "yacht", "catamaran")
 SMALL = ("dinghy", "kayak", "runabout")
