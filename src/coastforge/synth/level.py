@@ -301,7 +301,7 @@ def synthesize_level(preset: str, seed: int, *, size_m: float | None = None, gri
 
     ``mix`` (default: the benchmark's) sets which asset types are drawn how often (``synth_layout.Mix``)."""
     from .presets import build_layout
-    from ..synth_terrain import truth_heights
+    from .terrain import truth_heights
 
     check_preset(preset)
     if not (isinstance(grid_m, (int, float)) and 0.02 <= grid_m <= 2.0

@@ -18,7 +18,7 @@ from .layout import (
     BENCHMARK_MIX, AssetDims, Layout, Mix, PierSpec, add_anchored, add_buoy, add_parking, add_pier,
     add_street_parking, add_underway, obox, open_water_points, scatter_patches, wiggly_line,
 )
-from ..synth_terrain import TruthTerrainParams
+from .terrain import TruthTerrainParams
 
 CRUISERS = ("sailboat", "cabin_cruiser", "fishing_boat", "runabout", "yacht", "catamaran")
 SMALL = ("dinghy", "kayak", "runabout")

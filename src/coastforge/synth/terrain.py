@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from .classes import ASPHALT, ROCKS, SAND, SIDEWALK, WATER
+from ..classes import ASPHALT, ROCKS, SAND, SIDEWALK, WATER
 
 MIN_DEPTH_M = 0.05  # water pixels are at least this deep, land pixels at least this high
 
