@@ -144,7 +144,7 @@ def test_shipped_model_is_small_and_documented():
 @pytest.fixture(scope="module")
 def tiny_level():
     from coastforge.synth import synthesize_level
-    from coastforge.synth_render import mesh_source, render_level
+    from coastforge.synth.render import mesh_source, render_level
 
     level = synthesize_level("simple_pier_a", 7, size_m=60)
     rgb = render_level(level, mesh_source(None), 0.2, 7)

@@ -69,7 +69,7 @@ def clean_level(preset: str, seed: int, gsd: float, boxes: str = "detected",
     from ..segmentation import segment
     from ..segmentation.clean import clean_image
     from ..synth import synthesize_level
-    from ..synth_render import mesh_source, render_level
+    from ..synth.render import mesh_source, render_level
     from ..types import GeoImage, Grid
 
     level = synthesize_level(preset, seed, size_m=size_m)

@@ -74,7 +74,7 @@ def synth_levels(seed: int, presets=("marina", "pier_parking"), gsds=(0.1, 0.2),
     reason) when ``coastforge.synth`` is unavailable."""
     try:
         from ..synth import synthesize_level
-        from ..synth_render import mesh_source, render_level
+        from ..synth.render import mesh_source, render_level
     except ImportError as exc:
         return [], f"coastforge.synth is not available ({exc})"
     out = []

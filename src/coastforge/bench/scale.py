@@ -41,7 +41,7 @@ def base_render(work: Path, size_m: float = 200.0, preset: str = "marina", seed:
         return np.load(cache)
     try:
         from ..synth import synthesize_level
-        from ..synth_render import mesh_source, render_level
+        from ..synth.render import mesh_source, render_level
 
         level = synthesize_level(preset, seed, size_m=size_m, grid_m=GSD_M)
         rgb = render_level(level, mesh_source(None), GSD_M, seed)

@@ -388,7 +388,7 @@ def synth_to_dir(preset: str, seed: int, out_dir: str | Path, gsds=DEFAULT_GSDS,
 
     from ..fsio import atomic_write_text, prepare_output_dir, write_png
     from ..scene import save_scene
-    from ..synth_render import mesh_source, render_level
+    from .render import mesh_source, render_level
 
     check_preset(preset)
     gsds = parse_gsds(gsds)

@@ -68,7 +68,7 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
     from ..rng import stage_rng
     from ..synth import synthesize_level
     from ..synth.layout import BENCHMARK_MIX, TRAINING_MIX
-    from ..synth_render import mesh_source, render_level
+    from ..synth.render import mesh_source, render_level
 
     level = synthesize_level(preset, seed, size_m=size_m, library=library,
                              mix=TRAINING_MIX if mix == "training" else BENCHMARK_MIX)

@@ -23,7 +23,7 @@ DATA_GSD_M = 0.2  # samples are stored at this resolution (the truth rasters' ow
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> tuple[np.ndarray, np.ndarray]:
     """One synthetic level rendered at ``gsd_m`` and resampled to ``DATA_GSD_M``: (rgb, class ids)."""
     from ..synth import synthesize_level
-    from ..synth_render import mesh_source, render_level
+    from ..synth.render import mesh_source, render_level
 
     level = synthesize_level(preset, seed, size_m=size_m, grid_m=DATA_GSD_M)
     rgb = render_level(level, mesh_source(None), gsd_m, seed)

@@ -16,19 +16,19 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from . import frames
-from .classes import ASPHALT, SIDEWALK, WATER
-from .rng import stage_rng, stage_seed
+from .. import frames
+from ..classes import ASPHALT, SIDEWALK, WATER
+from ..rng import stage_rng, stage_seed
 
 
 def mesh_source(library: str | Path | None = None) -> Callable[[str], object]:
     """asset id → trimesh (scene frame, metres, forward +x): the starter kit, or a library's meshes
     (with the kit for roles the library could not fill)."""
-    from .assets.kit import load_kit_mesh
+    from ..assets.kit import load_kit_mesh
 
     if library is None:
         return load_kit_mesh
-    from .assets.library import Library
+    from ..assets.library import Library
 
     lib = Library.load(library)
 
@@ -39,8 +39,8 @@ def mesh_source(library: str | Path | None = None) -> Callable[[str], object]:
 
 
 def _instances(level, meshes) -> list:
-    from .assets.library import repaint  # one repaint for the renders and the library's painted views
-    from .render import MeshInstance
+    from ..assets.library import repaint  # one repaint for the renders and the library's painted views
+    from ..render import MeshInstance
 
     scene = level.scene
     cache: dict = {}
@@ -200,7 +200,7 @@ def render_level(level, meshes, gsd_m: float, seed: int) -> np.ndarray:
 
     The lighting and clutter depend on the seed only (not on the GSD), so the images of one level at
     several GSDs show the same moment."""
-    from .render import random_lighting, render_topdown
+    from ..render import random_lighting, render_topdown
 
     scene = level.scene
     name = scene.name
