@@ -291,7 +291,7 @@ class SynthLevel:
     """A synthesized level: the truth scene plus what only the renderer needs (clutter, layout)."""
 
     scene: Scene
-    layout: object  # synth_layout.Layout (local frame geometry, decor)
+    layout: object  # layout.Layout (local frame geometry, decor)
     seconds: float
 
 
@@ -299,7 +299,7 @@ def synthesize_level(preset: str, seed: int, *, size_m: float | None = None, gri
                      library: str | Path | None = None, mix: Mix | None = None) -> SynthLevel:
     """Lay out and rasterize one level (see ``synthesize``), keeping the layout for the renderer.
 
-    ``mix`` (default: the benchmark's) sets which asset types are drawn how often (``synth_layout.Mix``)."""
+    ``mix`` (default: the benchmark's) sets which asset types are drawn how often (``layout.Mix``)."""
     from .presets import build_layout
     from .terrain import truth_heights
 

@@ -3,10 +3,10 @@ the detector's working GSD, with their oriented boxes.
 
 ``python -m coastforge.train.detector_data --out DIR --seeds 100:400`` writes one PNG per level and an
 ``index.json`` listing, per image, the boxes ``[class_id, cx_px, cy_px, length_px, width_px, yaw_deg]``
-(yaw = direction of the front, scene convention). Rendering goes through ``coastforge.synth_render``
+(yaw = direction of the front, scene convention). Rendering goes through ``coastforge.synth.render``
 (lighting, tints, clutter, blur, noise, JPEG), so the training images look like the benchmark's; the
 benchmark's own seed (0) is refused so that validation never leaks into training. ``--mix training``
-draws the rare asset types more often (``synth_layout.TRAINING_MIX``: buses and box trucks, hatchbacks,
+draws the rare asset types more often (``synth.layout.TRAINING_MIX``: buses and box trucks, hatchbacks,
 dinghies, kayaks, rowboats, centre consoles); the default draws them as the benchmark's levels do.
 ``--library LIB`` renders the levels with another asset library's boats and cars (e.g. a training split of
 the CC0 models in ../shared/data/models), ``--looks varied`` repaints about half the boats (dark hulls
@@ -61,7 +61,7 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
                  looks: str = "kit") -> tuple[np.ndarray, list[list[float]]]:
     """One synthetic level rendered at ``gsd_m`` and resampled to ``work_gsd_m``: (rgb, boxes).
 
-    ``mix="training"`` draws the rare asset types more often (``synth_layout.TRAINING_MIX``); ``library``
+    ``mix="training"`` draws the rare asset types more often (``synth.layout.TRAINING_MIX``); ``library``
     fills the layout's roles with that library's assets (other looks than the kit's); ``looks="varied"``
     repaints about half the boats (``vary_looks``)."""
     from .. import frames
