@@ -323,10 +323,8 @@ def _render_source_hash() -> str:
     h = hashlib.sha256()
     from .. import render
 
-    for mod in ("render.py", "render_objects.py", "render_terrain.py"):
-        p = Path(render.__file__).with_name(mod)
-        if p.is_file():
-            h.update(p.read_bytes())
+    for p in sorted(Path(render.__file__).parent.glob("*.py")):
+        h.update(p.read_bytes())
     return h.hexdigest()[:16]
 
 

@@ -1,4 +1,5 @@
-"""Fast orthographic top-down renderer: a believable aerial photograph of a scene.
+"""The top-down render of a scene: lighting, the terrain layer (``terrain``), meshes and their shadows
+(``objects``) composited into one aerial photograph; whole scenes, scene files and single-mesh views.
 
 Terrain is shaded with vectorised numpy/OpenCV (class textures with procedural noise, hillshade,
 water tinted by depth with ripples and sun glint); placed meshes are ray-cast with embree (through
@@ -17,16 +18,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .classes import N_CLASSES, WATER
-from .errors import InputError
-from .render_objects import (
+from ..classes import N_CLASSES, WATER
+from ..errors import InputError
+from ..render_objects import (
     PixelGrid,
     composite_instances,
     heightfield_shadow,
     ray_backend,
     sun_vector,
 )
-from .render_terrain import (
+from ..render_terrain import (
     NoiseBank,
     hillshade,
     resample_classes,
@@ -36,18 +37,7 @@ from .render_terrain import (
     water_body,
     water_surface,
 )
-from .rng import stage_rng
-
-__all__ = [
-    "Lighting",
-    "MeshInstance",
-    "random_lighting",
-    "ray_backend",
-    "render_mesh_view",
-    "render_scene",
-    "render_topdown",
-    "standard_view_lightings",
-]
+from ..rng import stage_rng
 
 F32 = np.float32
 MAX_PIXELS = 6144 * 6144  # ~240 bytes per pixel at peak: larger renders must be tiled by the caller
@@ -566,7 +556,7 @@ def render_mesh_view(
 
 def kit_mesh_lookup() -> Callable[[str], trimesh.Trimesh]:
     """``mesh_for`` backed by the installed starter kit (``coastforge.assets.kit``)."""
-    from .assets.kit import load_kit_mesh
+    from ..assets.kit import load_kit_mesh
 
     return load_kit_mesh
 
@@ -584,8 +574,8 @@ def render_scene_file(
     ``lighting`` None: the default lighting. Returns the written path."""
     from pathlib import Path
 
-    from .fsio import check_writable_file, write_jpeg, write_png
-    from .scene import load_scene
+    from ..fsio import check_writable_file, write_jpeg, write_png
+    from ..scene import load_scene
 
     out = Path(out_path)
     suffix = out.suffix.lower()
