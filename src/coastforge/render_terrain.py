@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES, WATER
-from .render_objects import PixelGrid
+from .render.objects import PixelGrid
 from .rng import stage_rng
 
 F32 = np.float32

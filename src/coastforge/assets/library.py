@@ -1199,7 +1199,7 @@ def _start_method() -> str:
     """
     import threading
 
-    ro = sys.modules.get("coastforge.render_objects")
+    ro = sys.modules.get("coastforge.render.objects")
     return "fork" if threading.active_count() == 1 and not getattr(ro, "EMBREE_USED", False) else "spawn"
 
 

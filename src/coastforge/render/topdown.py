@@ -20,7 +20,7 @@ import numpy as np
 
 from ..classes import N_CLASSES, WATER
 from ..errors import InputError
-from ..render_objects import (
+from .objects import (
     PixelGrid,
     composite_instances,
     heightfield_shadow,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .errors import CoastforgeWarning, InputError
+from ..errors import CoastforgeWarning, InputError
 
 F32 = np.float32
 
