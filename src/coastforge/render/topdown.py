@@ -27,7 +27,7 @@ from .objects import (
     ray_backend,
     sun_vector,
 )
-from ..render_terrain import (
+from .terrain import (
     NoiseBank,
     hillshade,
     resample_classes,

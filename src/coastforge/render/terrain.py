@@ -11,9 +11,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES, WATER
-from .render.objects import PixelGrid
-from .rng import stage_rng
+from ..classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES, WATER
+from .objects import PixelGrid
+from ..rng import stage_rng
 
 F32 = np.float32
 
