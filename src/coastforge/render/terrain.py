@@ -12,8 +12,8 @@ import cv2
 import numpy as np
 
 from ..classes import ASPHALT, DIRT, GRASS, ROCKS, SAND, SIDEWALK, TREES, WATER
-from .objects import PixelGrid
 from ..rng import stage_rng
+from .objects import PixelGrid
 
 F32 = np.float32
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..classes import N_CLASSES, WATER
 from ..errors import InputError
+from ..rng import stage_rng
 from .objects import (
     PixelGrid,
     composite_instances,
@@ -37,7 +38,6 @@ from .terrain import (
     water_body,
     water_surface,
 )
-from ..rng import stage_rng
 
 F32 = np.float32
 MAX_PIXELS = 6144 * 6144  # ~240 bytes per pixel at peak: larger renders must be tiled by the caller
