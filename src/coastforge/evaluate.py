@@ -153,7 +153,7 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
     for i, j in zip(src.tolist(), dst.tolist()):
         if i != j:
             adj[i].append(j)
-    on_land = [_touches_land(scene, p.buffer(tol_m)) for p in polys]
+    on_land = [touches_land(scene, p.buffer(tol_m)) for p in polys]
     # connected components of the touch graph = structures
     comp = [-1] * n
     k = 0
@@ -181,7 +181,7 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
     }
 
 
-def _touches_land(scene: Scene, poly) -> bool:
+def touches_land(scene: Scene, poly) -> bool:
     grid = scene.grid
     minx, miny, maxx, maxy = poly.bounds
     # no land in the pixels of the bounding box (most segments of a marina stand in open water): no
@@ -208,7 +208,7 @@ def _touches_land(scene: Scene, poly) -> bool:
 
 
 def _box_pixels(scene: Scene, minx: float, miny: float, maxx: float, maxy: float) -> np.ndarray | None:
-    """Is each pixel of the window spanning the box land (the pixels ``_touches_land`` samples, clamped the
+    """Is each pixel of the window spanning the box land (the pixels ``touches_land`` samples, clamped the
     same way)? None when the scene has no raster to tell."""
     grid = scene.grid
     cols, rows = grid.to_pixel(np.array([minx, maxx]), np.array([miny, maxy]))

@@ -186,12 +186,12 @@ def match_objects_to_decisions(objects: list[SceneObject], matches: list[dict]) 
 
 def _library_config(provenance: dict):
     """The scene's ``config.library`` (the defaults when it has none or one this version cannot read)."""
-    from .config import LibraryConfig, _apply
+    from .config import Config, LibraryConfig, apply_settings
     from .errors import ConfigError
 
     given = (provenance.get("config") or {}).get("library") or {}
     try:
-        return _apply(LibraryConfig, LibraryConfig(), given, "library.")
+        return apply_settings(Config(), {"library": given}).library
     except ConfigError:
         return LibraryConfig()
 
@@ -746,12 +746,12 @@ def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
         cv2.circle(canvas, tuple(np.round(c).astype(int)), 4, (0, 0, 0), -1, cv2.LINE_AA)
         cv2.circle(canvas, tuple(np.round(c).astype(int)), 3, (255, 255, 255), -1, cv2.LINE_AA)
     rows = []
-    from .evaluate import _touches_land  # the same land test as the metric
+    from .evaluate import touches_land  # the same land test as the metric
     from shapely.geometry import Polygon
 
     for r in roots:
         members = [i for i in range(len(piers)) if root(i) == r]
-        land = any(_touches_land(scene, Polygon(polys[i]).buffer(0.5)) for i in members)
+        land = any(touches_land(scene, Polygon(polys[i]).buffer(0.5)) for i in members)
         kinds: dict[str, int] = {}
         for i in members:
             kinds[piers[i].asset_id] = kinds.get(piers[i].asset_id, 0) + 1
