@@ -790,7 +790,7 @@ def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):
     from coastforge.assets import library as lib_mod
     from coastforge.config import LibraryConfig
     from coastforge.pipeline import libraries
-    from coastforge.report import _library_config
+    from coastforge.report.page import _library_config
 
     asked = []
     monkeypatch.setattr(lib_mod, "default_library", lambda config=LibraryConfig(): asked.append(config) or "kit")

@@ -213,7 +213,7 @@ def test_terrain_figures_are_inline_svg(built):
 
 
 def test_nice_ticks():
-    from coastforge.report import _nice_ticks
+    from coastforge.report.page import _nice_ticks
 
     assert _nice_ticks(-100, 100) == [-100, -50, 0, 50, 100]
     assert _nice_ticks(-7.8, 0, 4) == [-6, -4, -2, 0]

@@ -18,10 +18,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .classes import CLASS_NAMES, EVALUATED_CATEGORIES, N_CLASSES, PALETTE, colorize
-from .errors import InputError, OutputExistsError
-from .fsio import atomic_write_text
-from .scene import Scene, SceneObject, load_scene
+from ..classes import CLASS_NAMES, EVALUATED_CATEGORIES, N_CLASSES, PALETTE, colorize
+from ..errors import InputError, OutputExistsError
+from ..fsio import atomic_write_text
+from ..scene import Scene, SceneObject, load_scene
 
 MAX_PX = 1400  # big pictures are shown at most this wide: keeps a 100-object report far under 15 MB
 TOP_MAX_PX = 768  # the generated scene rendered from above (shown at half the page width; costs per pixel)
@@ -186,8 +186,8 @@ def match_objects_to_decisions(objects: list[SceneObject], matches: list[dict]) 
 
 def _library_config(provenance: dict):
     """The scene's ``config.library`` (the defaults when it has none or one this version cannot read)."""
-    from .config import Config, LibraryConfig, apply_settings
-    from .errors import ConfigError
+    from ..config import Config, LibraryConfig, apply_settings
+    from ..errors import ConfigError
 
     given = (provenance.get("config") or {}).get("library") or {}
     try:
@@ -206,7 +206,7 @@ class _Assets:
             return
         lib_path = scene.provenance.get("library")
         try:
-            from .assets import library as lib_mod
+            from ..assets import library as lib_mod
 
             if lib_path and lib_path not in ("starter-kit", "kit") and Path(lib_path).is_dir():
                 self.lib = lib_mod.Library.load(lib_path)
@@ -222,7 +222,7 @@ class _Assets:
                 return self.lib.mesh(asset_id)
             except Exception:  # noqa: BLE001 - fall back to the kit below
                 pass
-        from .assets.kit import load_kit_mesh
+        from ..assets.kit import load_kit_mesh
 
         return load_kit_mesh(asset_id)
 
@@ -232,7 +232,7 @@ class _Assets:
             v = None
             if self.lib is not None:
                 try:
-                    from .matching import asset_top_view
+                    from ..matching import asset_top_view
 
                     v = asset_top_view(self.lib, asset_id, background)[0]
                 except Exception:  # noqa: BLE001 - an asset without a view only loses its thumbnail
@@ -252,7 +252,7 @@ def top_gsd(gsd_m: float, extent_m) -> float:
 
 def _render_top(scene: Scene, assets: _Assets, terrain=None) -> np.ndarray | None:
     try:
-        from .render import render_scene
+        from ..render import render_scene
     except ImportError:
         return None
     gsd = top_gsd(scene.gsd_m, scene.extent_m)
@@ -285,8 +285,8 @@ def _confidence_figure(scene_dir: Path, shape: tuple[int, int] | None) -> str:
     """The segmentation's per-pixel confidence and which source decided each pixel, when written."""
     import cv2
 
-    from .fsio import read_png
-    from .segmentation.learned import SOURCE_NAMES
+    from ..fsio import read_png
+    from ..segmentation.learned import SOURCE_NAMES
 
     seg = scene_dir / "segmentation"
     figs = []
@@ -407,7 +407,7 @@ def _detections_section(base, dets, scale, labels) -> str:
 def _objects_section(scene: Scene, image, assets: _Assets, links: dict[str, dict],
                      dets: list[dict]) -> tuple[str, str]:
     """The objects table and the CSS holding each asset view once (rows refer to it by class)."""
-    from .matching import crop_rotated
+    from ..matching import crop_rotated
 
     objs = [o for o in scene.objects if o.category in EVALUATED_CATEGORIES]
     if not objs:
@@ -542,7 +542,7 @@ def _svg_axes(ml: float, mt: float, pw: float, ph: float, xr, yr, xlabel: str, y
 def _hillshade_figure(scene: Scene, sections: list[dict]) -> str:
     """The height map as a shaded relief (the terrain stage's colours), in metres, with a colour bar and the
     cross-section transects as arrows: an SVG data URI."""
-    from .terrain.outputs import colour_relief, hillshade_rgb
+    from ..terrain.outputs import colour_relief, hillshade_rgb
 
     z = np.nan_to_num(scene.height.astype(np.float32))
     grid = scene.grid
@@ -683,7 +683,7 @@ def _pier_graph(piers: list[SceneObject], tol_m: float = 0.5):
 def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
     import cv2
 
-    from .evaluate import pier_connectivity
+    from ..evaluate import pier_connectivity
 
     piers = [o for o in scene.objects if o.category == "pier"]
     if not piers:
@@ -746,7 +746,7 @@ def _piers_section(scene: Scene, base: np.ndarray | None) -> str:
         cv2.circle(canvas, tuple(np.round(c).astype(int)), 4, (0, 0, 0), -1, cv2.LINE_AA)
         cv2.circle(canvas, tuple(np.round(c).astype(int)), 3, (255, 255, 255), -1, cv2.LINE_AA)
     rows = []
-    from .evaluate import touches_land  # the same land test as the metric
+    from ..evaluate import touches_land  # the same land test as the metric
     from shapely.geometry import Polygon
 
     for r in roots:
@@ -836,7 +836,7 @@ def _metrics_section(scene: Scene, truth_path: str | None) -> str:
     if not truth_path:
         return _note("No truth scene given: run <code>coastforge report DIR --truth truth.json</code> "
                      "to compare.")
-    from .evaluate import evaluate_scenes
+    from ..evaluate import evaluate_scenes
 
     m = evaluate_scenes(load_scene(truth_path), scene)
     cats = list(m.get("per_category", {}))
@@ -864,7 +864,7 @@ def _versions(scene: Scene) -> list[list[str]]:
     import platform
     import sys
 
-    from . import __version__
+    from .. import __version__
 
     p = scene.provenance
     three = ""
@@ -925,8 +925,8 @@ def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets,
     why = (f"a lighter preview of {files[0].relative_to(scene_dir)} ({files[0].stat().st_size / 1e6:.1f} MB)"
            if files else "built for the report (no gltf export in the folder)")
     try:
-        from .config import ExportConfig
-        from .export import DefaultResolver, run_exporter
+        from ..config import ExportConfig
+        from ..export import DefaultResolver, run_exporter
 
         cfg = ExportConfig(gltf_max_vertices=PREVIEW_VERTICES, texture_max_px=PREVIEW_TEXTURE_PX)
         resolver = DefaultResolver(library=assets.lib, scene_dir=scene_dir, texture=cleaned)
@@ -1029,7 +1029,7 @@ def _guard(name: str, fn, *args):
     costing the whole report. Coastforge errors (bad input) still propagate to the user."""
     import warnings
 
-    from .errors import CoastforgeError
+    from ..errors import CoastforgeError
 
     try:
         return fn(*args)
@@ -1073,7 +1073,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
                          "or a scene.json")
     out_path = Path(out) if out else scene_dir / "report.html"
     default_out = (scene_dir / "report.html").resolve()
-    from .fsio import same_file
+    from ..fsio import same_file
 
     if out_path.suffix.lower() not in (".html", ".htm"):
         raise InputError(f"--out {out_path} must end in .html (the report is one HTML page)")
