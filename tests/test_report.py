@@ -110,8 +110,11 @@ def test_report_is_self_contained(built):
     assert SECTION_FAILED not in page
     # nothing refers outside the page: no http(s) sources, links or imports (the vendored three.js has loader
     # code that can fetch; the browser test checks that no request is made)
-    bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js").read_text("utf-8")
+    static = resources.files("coastforge.report").joinpath("static")
+    bundle = static.joinpath("viewer.bundle.js").read_text("utf-8")
     assert bundle in page
+    for name in ("report.css", "report.js"):  # the page's stylesheet and script, installed as package data
+        assert static.joinpath(name).read_text("utf-8").strip() in page
     page = page.replace(bundle, "")
     for bad in ('src="http', "src='http", 'href="http', "@import", "<link ", "fetch(", 'src="/',
                 'src="file:'):
@@ -219,3 +222,24 @@ def test_nice_ticks():
     assert _nice_ticks(-7.8, 0, 4) == [-6, -4, -2, 0]
     assert _nice_ticks(0, 3.2, 4) == [0, 1, 2, 3]
     assert _nice_ticks(1.0, 1.0) == [1.0]
+
+
+def test_the_pages_static_files_are_package_data():
+    """report/static (stylesheet, script, 3D viewer and its licence) ships in wheels: pyproject's
+    package-data covers each of its files."""
+    import fnmatch
+    import sys
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    pkg = root / "src" / "coastforge"
+    patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    files = sorted((pkg / "report" / "static").iterdir())
+    assert {f.name for f in files} >= {"report.css", "report.js", "viewer.bundle.js", "THREE_LICENSE.txt"}
+    for f in files:
+        rel = f.relative_to(pkg).as_posix()
+        assert any(fnmatch.fnmatch(rel, p) for p in patterns["coastforge"]), rel

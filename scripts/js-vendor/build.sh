@@ -3,7 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 npm install --no-audit --no-fund --silent
-out=../../src/coastforge/report_assets
+out=../../src/coastforge/report/static
 mkdir -p "$out"
 npx esbuild entry.js --bundle --minify --format=iife --legal-comments=none --outfile="$out/viewer.bundle.js"
 { echo "three.js $(node -p "JSON.parse(require('fs').readFileSync('node_modules/three/package.json')).version") — bundled into viewer.bundle.js"; echo;

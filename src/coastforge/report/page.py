@@ -869,8 +869,7 @@ def _versions(scene: Scene) -> list[list[str]]:
     p = scene.provenance
     three = ""
     try:
-        lic = resources.files("coastforge.report_assets").joinpath("THREE_LICENSE.txt")
-        lic = lic.read_text(encoding="utf-8")
+        lic = static_text("THREE_LICENSE.txt")
         three = lic.split("—")[0].strip()
     except (OSError, FileNotFoundError):
         pass
@@ -939,86 +938,9 @@ def _glb_bytes(scene: Scene, scene_dir: Path, assets: _Assets,
     return None, ""
 
 
-CSS = """
-*{box-sizing:border-box}
-body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;background:#eef2f5;
-color:#1d2733;font-size:14px;line-height:1.4}
-header{background:linear-gradient(90deg,#0b3954,#087e8b);color:#fff;padding:16px 28px}
-header h1{margin:0;font-size:22px;font-weight:600}header p{margin:6px 0 0;opacity:.9}
-.chips span{display:inline-block;background:rgba(255,255,255,.16);border-radius:12px;padding:2px 10px;
-margin:6px 6px 0 0;font-size:13px}
-nav{position:sticky;top:0;z-index:5;padding:8px 28px;background:#dfe8ef;font-size:13px;
-border-bottom:1px solid #c9d6e0;display:flex;flex-wrap:wrap;gap:4px 16px}
-nav a{color:#0b3954;text-decoration:none;white-space:nowrap}nav a:hover{text-decoration:underline}
-section{background:#fff;margin:16px 28px;padding:14px 20px 18px;border-radius:8px;
-box-shadow:0 1px 3px rgba(0,0,0,.1);scroll-margin-top:44px}
-h2{margin:2px 0 10px;font-size:18px;color:#0b3954}h3{font-size:15px;margin:6px 0;color:#234}
-.pair{display:grid;grid-template-columns:repeat(auto-fit,minmax(440px,1fr));gap:16px;align-items:start}
-.pair>*{min-width:0}figure.narrow img{max-width:440px}figure{margin:0}
-figure img{width:100%;height:auto;border:1px solid #ccd5dd;border-radius:4px;cursor:zoom-in;display:block;
-background:#fff}figure.wide img{max-width:1100px}figcaption{font-size:13px;color:#4a5866;margin-top:4px}
-.stack{position:relative}.stack img.top{position:absolute;left:0;top:0;image-rendering:pixelated}
-.stack img:first-child{cursor:default}table{border-collapse:collapse;font-size:13px;margin:6px 0}
-td,th{border:1px solid #dbe2e8;padding:4px 8px;text-align:left;vertical-align:middle}
-th{background:#eef3f7;position:sticky;top:0;z-index:1}tbody tr:nth-child(even){background:#f8fafc}
-table.objects td{white-space:nowrap}
-.scroll{max-height:720px;overflow:auto;border:1px solid #e3e9ee;border-radius:4px}
-img.thumb,.av{width:96px;height:96px;border-radius:3px;display:inline-block;vertical-align:middle;
-background-size:cover;border:1px solid #ccd}.av.small{width:44px;height:44px}.cands{display:flex;gap:8px}
-.cand{display:flex;gap:4px;align-items:center;font-size:12px}
-.legend span{display:inline-block;margin:2px 14px 4px 0;font-size:13px}
-.legend i,.sw{display:inline-block;width:14px;height:14px;margin-right:5px;vertical-align:-2px;
-border:1px solid #777;border-radius:2px}.warnbox{background:#fff4d6;border:1px solid #e0a800;border-radius:4px;padding:6px 12px;margin:8px 0;color:#5a4300}
-small,.muted,.note{color:#5b6875}.note{margin:4px 0 10px}
-.ok{color:#1a7f37}.bad{color:#c62828}.bars{margin:6px 0 10px;max-width:620px}
-.bar{display:flex;align-items:center;gap:8px;margin:3px 0}
-.bar .lab{flex:0 0 110px;font-size:13px;text-align:right}.bar .track{flex:1 1 auto}
-.bar .b{display:block;height:14px;background:#087e8b;border-radius:2px;min-width:2px}
-.bar .val{flex:0 0 64px;font-size:12px;color:#445;white-space:nowrap}.timings .b{background:#0b3954}
-code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px}
-code{background:#f1f4f7;padding:1px 4px;border-radius:3px;white-space:pre-wrap;word-break:break-all}
-pre{max-height:320px;overflow:auto;background:#f6f8fa;padding:8px;border-radius:4px}
-table.prov td:first-child{font-weight:600;white-space:nowrap}
-#viewer{width:100%;height:560px;position:relative;border:1px solid #ccd5dd;border-radius:4px;
-overflow:hidden;background:#dde6ee}#viewer canvas{display:block}
-.vbar{margin:8px 0 0;display:flex;gap:8px;align-items:center}
-.vbar button{border:1px solid #9ab;background:#f4f8fb;border-radius:4px;padding:3px 10px;cursor:pointer}
-#lightbox{position:fixed;inset:0;background:rgba(10,20,30,.88);display:none;align-items:center;
-justify-content:center;z-index:20;cursor:zoom-out}
-#lightbox img{max-width:96vw;max-height:94vh;background:#fff}
-footer{margin:10px 28px 24px;color:#667;font-size:12px}
-"""
-
-JS = """
-(function () {
-  var lb = document.getElementById('lightbox'), lbi = lb.querySelector('img');
-  document.querySelectorAll('figure img').forEach(function (im) {
-    if (im.closest('.stack') && !im.classList.contains('top')) return;
-    im.addEventListener('click', function () { lbi.src = im.src; lb.style.display = 'flex'; });
-  });
-  lb.addEventListener('click', function () { lb.style.display = 'none'; lbi.removeAttribute('src'); });
-  var op = document.getElementById('classmap-opacity'), cm = document.getElementById('classmap-img');
-  if (op && cm) op.addEventListener('input', function () { cm.style.opacity = op.value / 100; });
-  var data = document.getElementById('glb-data'), el = document.getElementById('viewer');
-  if (!data || !el) return;
-  if (!window.CoastforgeViewer) { el.textContent = 'The 3D viewer script did not load.'; return; }
-  var v;
-  try {
-    v = window.CoastforgeViewer.show(el, data.textContent.trim(), {height: el.clientHeight || 560});
-  } catch (e) {
-    el.dataset.error = String(e);
-    el.textContent = 'This browser cannot show the 3D preview (WebGL unavailable): ' + e;
-    console.warn(e);
-    return;
-  }
-  v.then(function (r) {
-    el.dataset.drawnMs = String(Math.round(performance.now()));
-    document.querySelectorAll('.vbar button').forEach(function (b) {
-      b.addEventListener('click', function () { r.view && r.view(b.dataset.view); });
-    });
-  }).catch(function (e) { el.dataset.error = String(e); console.error('3D preview: ' + e); });
-})();
-"""
+def static_text(name: str) -> str:
+    """A file of ``report/static``: the page's stylesheet and script, the 3D viewer bundle and its licence."""
+    return resources.files(__package__).joinpath("static").joinpath(name).read_text(encoding="utf-8")
 
 
 SECTION_FAILED = "This section could not be built"
@@ -1147,8 +1069,7 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
         say("rendering the scene from above, class map and 3D preview")
         parts["overview"] = top_job.result()
         parts["classes"], (glb, glb_src) = cleaned_job.result()
-    bundle = resources.files("coastforge.report_assets").joinpath("viewer.bundle.js")
-    bundle = bundle.read_text(encoding="utf-8")
+    bundle = static_text("viewer.bundle.js")
     if glb is not None:
         parts["preview3d"] = (
             '<div id="viewer"></div><div class="vbar"><button data-view="top">top view</button>'
@@ -1177,14 +1098,16 @@ def build_report(scene_dir: str | Path, truth: str | Path | None = None, out: st
     warn = _warnings_block(scene)
     page = f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"/>
 <meta name="viewport" content="width=device-width, initial-scale=1"/>
-<title>coastforge report: {html.escape(scene.name)}</title><style>{CSS}{asset_css}</style></head><body>
+<title>coastforge report: {html.escape(scene.name)}</title><style>
+{static_text("report.css")}{asset_css}</style></head><body>
 <header><h1>coastforge — {html.escape(scene.name)}</h1>
 <div class="chips">{"".join(f"<span>{c}</span>" for c in chips)}</div>
 <p>Generated environment report{src}</p>{warn}</header><nav>{nav}</nav>{body}
 <footer>Self-contained page: works offline; the 3D view uses three.js (MIT licence), bundled.</footer>
 <div id="lightbox"><img alt="enlarged picture"/></div>
 <script>{bundle}</script>
-<script>{JS}</script></body></html>"""
+<script>
+{static_text("report.js")}</script></body></html>"""
     if wait is not None:
         wait("all")
     say("writing")
