@@ -790,7 +790,7 @@ def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):
     from coastforge.assets import library as lib_mod
     from coastforge.config import LibraryConfig
     from coastforge.pipeline import libraries
-    from coastforge.report.page import _library_config
+    from coastforge.report.inputs import library_config
 
     asked = []
     monkeypatch.setattr(lib_mod, "default_library", lambda config=LibraryConfig(): asked.append(config) or "kit")
@@ -799,5 +799,5 @@ def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):
     assert libraries.fallback_kit(only_boats, "my_lib", small)[0] == "kit" and asked == [small]
     assert libraries.load_library(None, small) == "kit" and asked == [small, small]
     prov = {"config": Config(library=small).to_dict()}
-    assert _library_config(prov) == small
-    assert _library_config({}) == _library_config({"config": {"library": {"view_size_px": "big"}}}) == LibraryConfig()
+    assert library_config(prov) == small
+    assert library_config({}) == library_config({"config": {"library": {"view_size_px": "big"}}}) == LibraryConfig()

@@ -216,12 +216,12 @@ def test_terrain_figures_are_inline_svg(built):
 
 
 def test_nice_ticks():
-    from coastforge.report.page import _nice_ticks
+    from coastforge.report.figures import nice_ticks
 
-    assert _nice_ticks(-100, 100) == [-100, -50, 0, 50, 100]
-    assert _nice_ticks(-7.8, 0, 4) == [-6, -4, -2, 0]
-    assert _nice_ticks(0, 3.2, 4) == [0, 1, 2, 3]
-    assert _nice_ticks(1.0, 1.0) == [1.0]
+    assert nice_ticks(-100, 100) == [-100, -50, 0, 50, 100]
+    assert nice_ticks(-7.8, 0, 4) == [-6, -4, -2, 0]
+    assert nice_ticks(0, 3.2, 4) == [0, 1, 2, 3]
+    assert nice_ticks(1.0, 1.0) == [1.0]
 
 
 def test_the_pages_static_files_are_package_data():
