@@ -386,7 +386,7 @@ def place_probe(cfg: Config, w: World):
 
 
 def piers_probe(cfg: Config, w: World):
-    from coastforge.piers import build_piers, set_deck_heights
+    from coastforge.pier_chains import build_piers, set_deck_heights
 
     walk, finger = (next(a for a in w.library.assets if a.id == i) for i in ("pier_walkway", "pier_finger"))
     dets, cm, height = w.pier_world

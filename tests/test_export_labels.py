@@ -358,7 +358,7 @@ def test_pier_decks_above_water_and_scores_in_unit_interval(generated):
 
 
 def test_deck_height_follows_the_quay():
-    from coastforge.piers import set_deck_heights
+    from coastforge.pier_chains import set_deck_heights
     from coastforge.types import HeightMap
 
     cls = np.zeros((40, 40), np.uint8)

@@ -10,7 +10,7 @@ import pytest
 from coastforge.classes import ASPHALT, GRASS, ROCKS, TREES, WATER
 from coastforge.config import MatchConfig, PierConfig, VegetationConfig
 from coastforge.evaluate import pier_connectivity
-from coastforge.piers import build_piers
+from coastforge.pier_chains import build_piers
 from coastforge.placement import fit_scale, place
 from coastforge.scene import Scene
 from coastforge.types import ClassMap, Detection, Grid, HeightMap

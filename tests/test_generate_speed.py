@@ -58,7 +58,7 @@ def test_library_stores_the_footprint_the_matcher_would_rasterise(car_lib):
 
 
 def test_pier_probe_along_a_ray_matches_one_probe_per_step():
-    from coastforge.piers import LandProbe, PierBox
+    from coastforge.pier_chains import LandProbe, PierBox
 
     rng = np.random.default_rng(4)
     ids = np.zeros((200, 240), np.uint8)  # water

@@ -320,7 +320,7 @@ def test_piers_tiled_matches_build_piers():
     from types import SimpleNamespace
 
     from coastforge.config import PierConfig
-    from coastforge.piers import build_piers
+    from coastforge.pier_chains import build_piers
 
     walk = SimpleNamespace(id="walk", category="pier", dims_m=(4.0, 2.0, 0.5), floating=False, tags=())
     finger = SimpleNamespace(id="finger", category="pier", dims_m=(3.0, 1.0, 0.4), floating=False, tags=())

@@ -99,7 +99,7 @@ def _stages(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, ti
             side: SideProcess | None) -> GenerateResult:
     """segment → detect (reconciled with the class map; on the scene grid) → self-check → clean → terrain →
     piers → vegetation → match and placement → scene files → exports → report → scene.json."""
-    from ..piers import set_deck_heights
+    from ..pier_chains import set_deck_heights
     from ..selfcheck import check_scene
     from ..terrain import estimate_terrain
     from ..vegetation import scatter

@@ -563,12 +563,12 @@ def scale_detection(d: Detection, f: float) -> Detection:
 
 def piers_tiled(dets: list[Detection], class_map: ClassMap, walkway_asset, finger_asset, config,
                 tile_px: int = 1024, margin_m: float | None = None):
-    """``piers.build_piers`` region by region, so its cost grows with the area and not with the square of
-    the number of pier boxes. Each core tile of the class map's grid runs with the boxes within
-    ``margin_m`` around it (default: 8 x ``piers.max_gap_m`` + 30 m, the reach of its connectors) and a
+    """``pier_chains.build_piers`` region by region, so its cost grows with the area and not with the
+    square of the number of pier boxes. Each core tile of the class map's grid runs with the boxes within
+    ``margin_m`` around it (default: 8 x ``max_gap_m`` + 30 m, the reach of its connectors) and a
     class-map crop as context, and keeps the segments whose position falls in its core, so every segment is
     emitted once. Returns (objects, report). Detections are in the class map's pixels."""
-    from ..piers import build_piers
+    from ..pier_chains import build_piers
 
     g = class_map.grid
     piers = [d for d in dets if d.category in PIER_CATEGORIES]

@@ -76,7 +76,7 @@ class WholeImage:
         return partial(match_in_image, self.image)
 
     def piers(self, dets: list[Detection], class_map: ClassMap, walkway, finger, config) -> tuple[list, dict]:
-        from ..piers import build_piers
+        from ..pier_chains import build_piers
 
         pr = build_piers(dets, class_map, walkway, finger, config)
         return list(pr.objects), pr.report
