@@ -441,7 +441,7 @@ def export_command(cfg: Config, w: World):
 
 def library_views(cfg: Config, w: World):
     """One asset of the starter kit rendered and embedded as a library build does it (in this process)."""
-    from coastforge.assets.library import _config_dict, _ingest_one
+    from coastforge.assets.library.store import _config_dict, _ingest_one
 
     res = _ingest_one(w.kit_asset, str(w.scratch()), _config_dict(cfg.library), {"name": cfg.library.embedder})
     assert "record" in res, res
@@ -463,7 +463,7 @@ def library_workers(cfg: Config, w: World):
     """How many render processes a library build asks for (the jobs themselves are not run)."""
     from unittest import mock
 
-    from coastforge.assets import library as lib
+    from coastforge.assets.library import store as lib
 
     asked = []
 
@@ -768,7 +768,7 @@ def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, mo
     """Without --library, generate matches against the starter kit built with ``config.library``: in its
     threads and in its side process (which would build a kit of its own from other settings)."""
     from coastforge.pipeline import runtime
-    from coastforge.assets.library import _config_dict
+    from coastforge.assets.library.store import _config_dict
     from coastforge.config import LibraryConfig
     from coastforge.pipeline import GenerateRequest, run_generate
 

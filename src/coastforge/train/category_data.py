@@ -46,7 +46,7 @@ def isolated(lib, seeds: list[int]) -> list:
 
 
 def crowded(lib, seeds: list[int]) -> list:
-    from ..assets.library import CROWD_MAX_LENGTH_M, _random_lit_view, crowd_mesh
+    from ..assets.library.store import CROWD_MAX_LENGTH_M, _random_lit_view, crowd_mesh
     from ..bench.library import MAX_QUERY_PX
     from ..rng import stage_rng
 

@@ -36,13 +36,13 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .. import __version__
-from ..classes import ASSET_CATEGORIES
-from ..config import LibraryConfig
-from ..errors import CoastforgeError, InputError, LibraryError, OutputExistsError
-from ..fsio import atomic_write_bytes, atomic_write_text, read_png, write_png
-from .index import VectorIndex
-from .meshes import MESH_SUFFIXES, file_hash, footprint_mask, load_mesh, normalise_mesh
+from ... import __version__
+from ...classes import ASSET_CATEGORIES
+from ...config import LibraryConfig
+from ...errors import CoastforgeError, InputError, LibraryError, OutputExistsError
+from ...fsio import atomic_write_bytes, atomic_write_text, read_png, write_png
+from ..index import VectorIndex
+from ..meshes import MESH_SUFFIXES, file_hash, footprint_mask, load_mesh, normalise_mesh
 
 FORMAT = "coastforge.library/1"
 # scene frame (z up) -> glTF (y up): (x, y, z) -> (x, z, -y); a rotation about +x, so faces keep their winding
@@ -233,7 +233,7 @@ def read_manifest(path: str | Path, lenient: bool = False) -> tuple[list[AssetSp
         raise LibraryError(f"cannot read manifest {path}: {exc}") from exc
     try:
         if path.suffix.lower() == ".toml":
-            from ..config import tomllib
+            from ...config import tomllib
 
             doc = tomllib.loads(text)
         else:
@@ -313,7 +313,7 @@ def scan_folder(src: Path) -> tuple[list[AssetSpec], list[SkippedAsset]]:
 
 
 def view_lightings():
-    from ..render import standard_view_lightings
+    from ...render import standard_view_lightings
 
     return standard_view_lightings()
 
@@ -321,7 +321,7 @@ def view_lightings():
 def _render_source_hash() -> str:
     """Renderer code changes make old views stale: hash its source into the view settings."""
     h = hashlib.sha256()
-    from .. import render
+    from ... import render
 
     for p in sorted(Path(render.__file__).parent.glob("*.py")):
         h.update(p.read_bytes())
@@ -440,8 +440,8 @@ def crowd_mesh(mesh, category: str, dims_m: Sequence[float], rng) -> tuple[Any, 
 def render_query_views(mesh, asset_id: str, dims_m: Sequence[float], view_gsd: float, config: LibraryConfig,
                        category: str | None = None):
     """Query-like views (see ``LibraryConfig.query_view_gsds_m``): list of (image, meta dict)."""
-    from ..render import render_mesh_view
-    from ..rng import stage_rng
+    from ...render import render_mesh_view
+    from ...rng import stage_rng
 
     n_random = int(config.query_view_random_lightings)
     if n_random < 0:
@@ -487,7 +487,7 @@ def crowded_view(mesh, category: str, dims_m: Sequence[float], gsd: float, side:
 
 def _random_lit_view(mesh, gsd: float, side: int, background: str, rng, centre_xy=None):
     """One query-like view under a random lighting and yaw drawn from ``rng``: (image, meta dict)."""
-    from ..render import random_lighting, render_mesh_view
+    from ...render import random_lighting, render_mesh_view
 
     light = random_lighting(rng)
     yaw = round(float(rng.uniform(-180.0, 180.0)), 3)
@@ -559,7 +559,7 @@ def _ingest_one(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
     if spec.thumb is not None:
         return _ingest_thumb(spec, out, cfg, want_vectors)
     try:
-        from ..render import render_mesh_view
+        from ...render import render_mesh_view
 
         config = LibraryConfig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in cfg.items()})
         raw = load_mesh(spec.mesh, spec.id)
@@ -674,7 +674,7 @@ def _stored_images(out: Path, rec: dict) -> tuple[list, list, list[float]]:
 
 
 def _make_embedder(name: str, weights: str | None = None):
-    from .. import registry
+    from ... import registry
 
     cls = registry.load("embed", name)
     return cls(weights=weights)
@@ -897,7 +897,7 @@ class Library:
         """The category head's posteriors of crops over this library's categories (sorted names), to weigh
         the category vote of ``search``; None when it does not apply (another embedder, one category, the
         head switched off or not installed)."""
-        from .category_net import CATEGORIES, shipped_head
+        from ..category_net import CATEGORIES, shipped_head
 
         names = sorted({a.category for a in self.assets})
         if self.CATEGORY_PRIOR_BETA <= 0 or len(names) < 2 or \
@@ -966,7 +966,7 @@ def _record_files(a: dict) -> list[str]:
 def _intact(path: Path) -> bool:
     """A stored view or model copy that is complete: a PNG whose chunks pass their CRCs, a GLB as long as its
     header says. (An interrupted copy or a damaged disk leaves files that exist but cannot be read.)"""
-    from ..io import image_damage
+    from ...io import image_damage
 
     if path.suffix.lower() == ".png":
         return image_damage(path) is None
@@ -1232,8 +1232,10 @@ def read_thumbnails(folder: Path) -> tuple[list[AssetSpec], list[SkippedAsset]]:
     """Parse ``thumbnails.json`` written by ``coastforge/assets/unreal/capture_thumbnails.py``."""
     jpath = folder / "thumbnails.json"
     if not jpath.is_file():
+        from ..unreal import CAPTURE_SCRIPT
+
         raise LibraryError(f"{folder} has no thumbnails.json; capture it in Unreal with the script "
-                           f"{Path(__file__).parent / 'unreal' / 'capture_thumbnails.py'}")
+                           f"{CAPTURE_SCRIPT}")
     try:
         doc = json.loads(jpath.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
@@ -1363,7 +1365,7 @@ _DEFAULT: dict[str, Library] = {}
 
 def default_library(config: LibraryConfig = LibraryConfig()) -> Library:
     """The starter kit as a library, built once into the user cache (atomically) and reused."""
-    from .kit import MANIFEST_NAME, kit_dir
+    from ..kit import MANIFEST_NAME, kit_dir
 
     manifest = kit_dir() / MANIFEST_NAME
     if not manifest.is_file():
@@ -1412,8 +1414,8 @@ def query_image(lib_path: str | Path | None, image_path: str | Path, gsd_m: floa
                 category: str | None = None, embedder: str | None = None, weights: str | Path | None = None
                 ) -> list[dict]:
     """``coastforge library query``: the ``k`` nearest assets of one image file, best first."""
-    from ..config import IOConfig
-    from ..io import image_damage
+    from ...config import IOConfig
+    from ...io import image_damage
 
     if not (isinstance(gsd_m, (int, float)) and gsd_m > 0 and math.isfinite(gsd_m)):
         raise InputError(f"--gsd {gsd_m!r} must be a positive number of metres per pixel")
