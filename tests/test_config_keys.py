@@ -441,9 +441,10 @@ def export_command(cfg: Config, w: World):
 
 def library_views(cfg: Config, w: World):
     """One asset of the starter kit rendered and embedded as a library build does it (in this process)."""
-    from coastforge.assets.library.store import _config_dict, _ingest_one
+    from coastforge.assets.library.build import config_dict
+    from coastforge.assets.library.ingest import ingest_mesh
 
-    res = _ingest_one(w.kit_asset, str(w.scratch()), _config_dict(cfg.library), {"name": cfg.library.embedder})
+    res = ingest_mesh(w.kit_asset, str(w.scratch()), config_dict(cfg.library), {"name": cfg.library.embedder})
     assert "record" in res, res
     rec = {k: v for k, v in res["record"].items() if k not in ("source_mesh",)}
     return rec, res["vectors"]
@@ -463,7 +464,7 @@ def library_workers(cfg: Config, w: World):
     """How many render processes a library build asks for (the jobs themselves are not run)."""
     from unittest import mock
 
-    from coastforge.assets.library import store as lib
+    from coastforge.assets.library import build as lib
 
     asked = []
 
@@ -768,7 +769,7 @@ def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, mo
     """Without --library, generate matches against the starter kit built with ``config.library``: in its
     threads and in its side process (which would build a kit of its own from other settings)."""
     from coastforge.pipeline import runtime
-    from coastforge.assets.library.store import _config_dict
+    from coastforge.assets.library.build import config_dict
     from coastforge.config import LibraryConfig
     from coastforge.pipeline import GenerateRequest, run_generate
 
@@ -781,7 +782,7 @@ def test_generate_builds_the_starter_kit_from_config_library(world, tmp_path, mo
         res = run_generate(req, cfg)
         assert res.n_objects.get("boat")
     kits = [json.loads(p.read_text()) for p in (tmp_path / "cache").glob("kit-*/library.json")]
-    assert [k["config"] for k in kits] == [_config_dict(cfg.library)]
+    assert [k["config"] for k in kits] == [config_dict(cfg.library)]
 
 
 def test_the_fallback_kit_and_the_report_use_config_library(monkeypatch):

@@ -241,7 +241,7 @@ def test_no_fork_after_a_ray_cast():
     import subprocess
     import sys
 
-    head = ("import threading, trimesh; from coastforge.assets.library.store import _start_method; "
+    head = ("import threading, trimesh; from coastforge.assets.library.build import _start_method; "
             "from coastforge.render import render_mesh_view, standard_view_lightings; ")
     render = "render_mesh_view(trimesh.creation.box(), 0.1, 32, standard_view_lightings()[0], 'water'); "
     for body, want in (("", "fork"), (render, "spawn")):
@@ -256,7 +256,7 @@ def test_parallel_build_from_a_background_thread_does_not_fork(two_assets, tmp_p
     import threading
     from concurrent.futures import ThreadPoolExecutor
 
-    from coastforge.assets.library.store import _start_method
+    from coastforge.assets.library.build import _start_method
 
     assert threading.active_count() >= 1
     with ThreadPoolExecutor(1) as ex:
@@ -585,7 +585,7 @@ def test_cli_build_and_query_json(two_assets, tmp_path):
 
 
 def test_default_library_is_the_kit_built_once(tmp_path, monkeypatch):
-    from coastforge.assets.library import store as L
+    from coastforge.assets.library import cache as L
     from coastforge.assets.kit import kit_assets
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))

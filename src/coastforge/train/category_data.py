@@ -46,7 +46,7 @@ def isolated(lib, seeds: list[int]) -> list:
 
 
 def crowded(lib, seeds: list[int]) -> list:
-    from ..assets.library.store import CROWD_MAX_LENGTH_M, _random_lit_view, crowd_mesh
+    from ..assets.library import CROWD_MAX_LENGTH_M, crowd_mesh, random_lit_view
     from ..bench.library import MAX_QUERY_PX
     from ..rng import stage_rng
 
@@ -68,7 +68,7 @@ def crowded(lib, seeds: list[int]) -> list:
                 bg = "ground" if a.category == "vehicle" else "water"
                 if rng.random() < 0.25:  # now and then the other way round
                     bg = "water" if bg == "ground" else "ground"
-                img, _ = _random_lit_view(crowd, gsd, side, bg, rng, centre)
+                img, _ = random_lit_view(crowd, gsd, side, bg, rng, centre)
                 out.append((img, gsd, a.category))
     return out
 
