@@ -27,7 +27,8 @@ import trimesh
 from coastforge.config import ExportConfig
 from coastforge.errors import InputError, OutputExistsError
 from coastforge.export import export_scene, parse_formats
-from coastforge.export.gltf import from_gltf, read_glb, yaw_from_quaternion
+from coastforge.export.glb import read_glb
+from coastforge.export.gltf import from_gltf, yaw_from_quaternion
 from coastforge.export.terrain_mesh import resample_height, sample_class, sample_height
 from coastforge.export.ue5 import LANDSCAPE_SIZES, decode_heights, encode_heights, landscape_size
 from coastforge.scene import Scene, SceneObject, Vegetation
@@ -464,7 +465,7 @@ def test_gltf_passes_khronos_validator(out):
     # the validator does find errors: break an accessor's bounds
     doc, binary = read_glb(glb.read_bytes())
     doc["accessors"][0]["max"] = [0.0, 0.0, 0.0]
-    from coastforge.export.gltf import GlbBuilder
+    from coastforge.export.glb import GlbBuilder
 
     b = GlbBuilder()
     b.doc, b.bin = doc, bytearray(binary)

@@ -27,7 +27,8 @@ import pytest
 from coastforge.config import Config, ExportConfig, MatchConfig, PierConfig
 from coastforge.errors import InputError
 from coastforge.export import export_scene, export_summary, unique_names
-from coastforge.export.gltf import from_gltf, read_glb, yaw_from_quaternion
+from coastforge.export.glb import read_glb
+from coastforge.export.gltf import from_gltf, yaw_from_quaternion
 from coastforge.export.labels import HOLOOCEAN_LABELS, instances_table
 from coastforge.scene import Scene, SceneObject, load_scene
 
