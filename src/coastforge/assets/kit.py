@@ -29,6 +29,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import CoastforgeError, LibraryError
+from ..export import glb
+from ..export.glb import UINT, USHORT, GlbBuilder
 from ..fsio import atomic_write_bytes, atomic_write_text, prepare_output_dir
 from ..rng import stage_rng
 
@@ -1176,7 +1178,7 @@ ASSET_SPECS: tuple[AssetSpec, ...] = (
 
 
 # --------------------------------------------------------------------------------------------------
-# GLB writer / reader (our own subset of glTF 2.0: one node, one mesh, one primitive per colour)
+# GLB files (``export.glb`` lays them out): one node, one mesh, one primitive per colour
 
 
 def _flat_primitive(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -1203,62 +1205,25 @@ def _flat_primitive(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def glb_bytes(model: _Model, name: str) -> bytes:
-    """Encode a model as GLB (glTF y-up), one primitive + PBR material per colour; deterministic."""
-    bin_parts: list[bytes] = []
-    offset = 0
-    views, accessors, primitives, materials = [], [], [], []
-
-    def add_view(data: bytes, target: int) -> int:
-        nonlocal offset
-        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(data), "target": target})
-        pad = (-len(data)) % 4
-        bin_parts.append(data + b"\x00" * pad)
-        offset += len(data) + pad
-        return len(views) - 1
-
+    """Encode a model as GLB (glTF y-up), one primitive + PBR material per colour; deterministic (the
+    document's keys sorted)."""
+    b = GlbBuilder(generator="coastforge.assets.kit")
+    primitives = []
     for colour, v, f in model.by_colour():
         pos, nrm, uv, idx = _flat_primitive(v @ SCENE_TO_GLTF.T, f)
         if len(idx) == 0:
             continue
-        big = len(pos) > 65535
-        idx_bytes = idx.astype(np.uint32 if big else np.uint16).tobytes()
-        pv = add_view(pos.tobytes(), 34962)
-        nv = add_view(nrm.tobytes(), 34962)
-        tv = add_view(uv.tobytes(), 34962)
-        iv = add_view(idx_bytes, 34963)
-        a0 = len(accessors)
-        accessors += [
-            {"bufferView": pv, "componentType": 5126, "count": len(pos), "type": "VEC3",
-             "min": [float(x) for x in pos.min(0)], "max": [float(x) for x in pos.max(0)]},
-            {"bufferView": nv, "componentType": 5126, "count": len(nrm), "type": "VEC3"},
-            {"bufferView": tv, "componentType": 5126, "count": len(uv), "type": "VEC2"},
-            {"bufferView": iv, "componentType": 5125 if big else 5123, "count": len(idx), "type": "SCALAR"},
-        ]
-        (r, g, b), finish = colour
+        (r, g, bl), finish = colour
         rough, metal = _FINISH[finish]
-        materials.append({
-            "name": f"{finish}_{r:02x}{g:02x}{b:02x}",
-            "pbrMetallicRoughness": {"baseColorFactor": [round(_lin(c), 6) for c in (r, g, b)] + [1.0],
+        material = {
+            "name": f"{finish}_{r:02x}{g:02x}{bl:02x}",
+            "pbrMetallicRoughness": {"baseColorFactor": [round(_lin(c), 6) for c in (r, g, bl)] + [1.0],
                                      "metallicFactor": metal, "roughnessFactor": rough},
-        })
-        attributes = {"POSITION": a0, "NORMAL": a0 + 1, "TEXCOORD_0": a0 + 2}
-        primitives.append({"attributes": attributes, "indices": a0 + 3, "material": len(materials) - 1, "mode": 4})
-    binary = b"".join(bin_parts)
-    doc = {
-        "asset": {"version": "2.0", "generator": "coastforge.assets.kit"},
-        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"name": name, "mesh": 0}],
-        "meshes": [{"name": name, "primitives": primitives}], "materials": materials,
-        "accessors": accessors, "bufferViews": views, "buffers": [{"byteLength": len(binary)}],
-    }
-    js = json.dumps(doc, separators=(",", ":"), sort_keys=True).encode("utf-8")
-    js += b" " * ((-len(js)) % 4)
-    total = 12 + 8 + len(js) + 8 + len(binary)
-    return (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(js), b"JSON") + js
-            + struct.pack("<I4s", len(binary), b"BIN\x00") + binary)
-
-
-_COMPONENT = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}
-_NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}
+        }
+        index_type = UINT if len(pos) > 65535 else USHORT
+        primitives.append(b.primitive(pos, nrm, idx, b.material(material), uv=uv, index_type=index_type))
+    b.node({"name": name, "mesh": b.add_mesh(name, primitives)})
+    return b.to_bytes(sort_keys=True)
 
 
 def read_glb(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1269,23 +1234,7 @@ def read_glb(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     except OSError as exc:
         raise LibraryError(f"cannot read kit mesh {path} ({exc}); regenerate the kit") from None
     try:
-        magic, version, _total = struct.unpack_from("<4sII", data, 0)
-        if magic != b"glTF" or version != 2:
-            raise ValueError("not a glTF 2 binary")
-        jlen, _jtype = struct.unpack_from("<I4s", data, 12)
-        doc = json.loads(data[20:20 + jlen])
-        blen, _btype = struct.unpack_from("<I4s", data, 20 + jlen)
-        binary = data[28 + jlen:28 + jlen + blen]
-
-        def accessor(i: int) -> np.ndarray:
-            a = doc["accessors"][i]
-            view = doc["bufferViews"][a["bufferView"]]
-            dt = np.dtype(_COMPONENT[a["componentType"]])
-            k = _NCOMP[a["type"]]
-            start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
-            arr = np.frombuffer(binary, dtype=dt, count=a["count"] * k, offset=start)
-            return arr.reshape(-1, k) if k > 1 else arr
-
+        doc, binary = glb.read_glb(data)
         vs, fs, cs, off = [], [], [], 0
         for node in doc["nodes"]:
             if "mesh" not in node:
@@ -1293,8 +1242,8 @@ def read_glb(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             if any(k in node for k in ("matrix", "rotation", "translation", "scale")):
                 raise ValueError("node transforms are not used by kit meshes")
             for prim in doc["meshes"][node["mesh"]]["primitives"]:
-                pos = accessor(prim["attributes"]["POSITION"]).astype(np.float64)
-                idx = accessor(prim["indices"]).astype(np.int64).reshape(-1, 3)
+                pos = glb.accessor_array(doc, binary, prim["attributes"]["POSITION"]).astype(np.float64)
+                idx = glb.accessor_array(doc, binary, prim["indices"]).astype(np.int64).reshape(-1, 3)
                 mat = doc["materials"][prim["material"]]
                 fac = mat.get("pbrMetallicRoughness", {}).get("baseColorFactor", [1, 1, 1, 1])
                 rgba = [_srgb(c) for c in fac[:3]] + [int(round(fac[3] * 255))]
