@@ -28,11 +28,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import CoastforgeError, LibraryError
-from ..export import glb
-from ..export.glb import UINT, USHORT, GlbBuilder
-from ..fsio import atomic_write_bytes, atomic_write_text, prepare_output_dir
-from ..rng import stage_rng
+from ...errors import CoastforgeError, LibraryError
+from ...export import glb
+from ...export.glb import UINT, USHORT, GlbBuilder
+from ...fsio import atomic_write_bytes, atomic_write_text, prepare_output_dir
+from ...rng import stage_rng
 
 KIT_FORMAT = "coastforge.kit/1"
 MANIFEST_NAME = "kit.json"
@@ -1277,7 +1277,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     size = sum(p.stat().st_size for p in manifest.parent.glob("*.glb"))
     print(f"wrote {len(ASSET_SPECS)} assets ({size / 1e6:.2f} MB of GLB) and {manifest}")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
