@@ -174,7 +174,7 @@ def test_boat_bow_points_forward(asset_id):
 @pytest.mark.parametrize("asset_id", VEHICLES)
 def test_vehicle_windscreen_faces_forward(asset_id):
     """Dark glass that faces forward-and-up (windscreen) outweighs glass facing backward-and-up."""
-    from coastforge.assets.kit.build import GLASS
+    from coastforge.assets.kit.shapes import GLASS
 
     mesh = kit.load_kit_mesh(asset_id)
     glass = np.all(mesh.visual.face_colors[:, :3] == np.array(GLASS[0]), axis=1)
