@@ -44,6 +44,7 @@ class BuildReport:
 def _intact(path: Path) -> bool:
     """A stored view or model copy that is complete: a PNG whose chunks pass their CRCs, a GLB as long as its
     header says. (An interrupted copy or a damaged disk leaves files that exist but cannot be read.)"""
+    from ...export import glb
     from ...io import image_damage
 
     if path.suffix.lower() == ".png":
@@ -52,7 +53,7 @@ def _intact(path: Path) -> bool:
         try:
             with open(path, "rb") as fh:
                 head = fh.read(12)
-            return len(head) == 12 and head[:4] == b"glTF" and int.from_bytes(head[8:12], "little") == \
+            return len(head) == 12 and head[:4] == glb.MAGIC and int.from_bytes(head[8:12], "little") == \
                 path.stat().st_size
         except OSError:
             return False
