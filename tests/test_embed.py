@@ -89,10 +89,10 @@ def test_size_code_of_a_few_pixels_is_wide():
     """A 3 px object measured 4 px long still shares size code with its 3 px self; at 30 vs 40 px it does not."""
     import math
 
-    from coastforge.assets.embed import SIZE_PX_UNCERTAINTY, _rbf
+    from coastforge.assets.embed import SIZE_PX_UNCERTAINTY, rbf
 
     def code(px, gsd=0.2):
-        return _rbf(math.log(px * gsd), math.log(0.1), math.log(400.0), 96, SIZE_PX_UNCERTAINTY / px)
+        return rbf(math.log(px * gsd), math.log(0.1), math.log(400.0), 96, SIZE_PX_UNCERTAINTY / px)
 
     def cos(a, b):
         return float(a @ b / np.linalg.norm(a) / np.linalg.norm(b))

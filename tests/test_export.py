@@ -779,7 +779,7 @@ def test_default_resolver_library_then_kit_then_error():
 def test_grid_resampling_matches_scipy_and_weight_maps_sum():
     from scipy.ndimage import map_coordinates
 
-    from coastforge.export.terrain_mesh import (_grid_bilinear, class_weight_maps_u8, class_weights, vertex_grid,
+    from coastforge.export.terrain_mesh import (class_weight_maps_u8, class_weights, grid_bilinear, vertex_grid,
                                                 weights_to_u8)
 
     rng = np.random.default_rng(3)
@@ -788,7 +788,7 @@ def test_grid_resampling_matches_scipy_and_weight_maps_sum():
     cols = np.linspace(-0.5, 52.5, 123)
     rr, cc = np.meshgrid(rows, cols, indexing="ij")
     want = map_coordinates(src.astype(np.float64), [rr, cc], order=1, mode="nearest")
-    assert np.abs(_grid_bilinear(src, rows, cols, block=7) - want).max() < 1e-9
+    assert np.abs(grid_bilinear(src, rows, cols, block=7) - want).max() < 1e-9
     s = make_scene()
     cls = s.classes.copy()
     cls[20:30, 40:50] = rng.integers(0, 8, size=(10, 10))

@@ -114,7 +114,7 @@ BG_FULL = 0.2
 
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def unit(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, np.float32).ravel()
     n = float(np.linalg.norm(v))
     return v / n if n > 1e-12 else v
@@ -150,7 +150,7 @@ def _hist(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
     return np.bincount(idx, minlength=n).astype(np.float32)
 
 
-def _rbf(value: float, lo: float, hi: float, n: int, extra_sigma: float = 0.0) -> np.ndarray:
+def rbf(value: float, lo: float, hi: float, n: int, extra_sigma: float = 0.0) -> np.ndarray:
     """Gaussian soft-binning of a scalar: the inner product of two codes falls smoothly with distance.
     ``extra_sigma`` widens the bump for an uncertain value (in the units of ``value``)."""
     centres = _centres(lo, hi, n)
@@ -165,7 +165,7 @@ def rgb_to_lab(rgb: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(rgb.astype(np.float32) / 255.0, cv2.COLOR_RGB2Lab)
 
 
-def _as_rgb(image: np.ndarray, i: int) -> np.ndarray:
+def as_rgb(image: np.ndarray, i: int) -> np.ndarray:
     a = np.asarray(image)
     if a.ndim == 2:
         a = np.repeat(a[:, :, None], 3, axis=2)
@@ -546,7 +546,7 @@ class DefaultEmbedder:
         for i, (img, g) in enumerate(zip(images, gsds)):
             if not (g > 0 and math.isfinite(g)):
                 raise InputError(f"gsd {g!r} of image {i} must be a positive number of metres per pixel")
-            out[i] = _unit(self._blocks(_as_rgb(img, i), g))
+            out[i] = unit(self._blocks(as_rgb(img, i), g))
         return out
 
     # -- blocks ---------------------------------------------------------------------------------------
@@ -575,21 +575,21 @@ class DefaultEmbedder:
         # a mask a few pixels long is uncertain by about a pixel: widen the size code accordingly
         u_l, u_w = SIZE_PX_UNCERTAINTY / length_px, SIZE_PX_UNCERTAINTY / width_px
         size = np.concatenate([
-            _rbf(math.log(max(length_px * gsd, 1e-3)), math.log(0.1), math.log(400.0), SIZE_BINS[0], u_l),
-            _rbf(math.log(max(width_px * gsd, 1e-3)), math.log(0.05), math.log(80.0), SIZE_BINS[1], u_w),
-            _rbf(math.log(max(area_px * gsd * gsd, 1e-4)), math.log(0.005), math.log(2e4), SIZE_BINS[2], u_l + u_w),
+            rbf(math.log(max(length_px * gsd, 1e-3)), math.log(0.1), math.log(400.0), SIZE_BINS[0], u_l),
+            rbf(math.log(max(width_px * gsd, 1e-3)), math.log(0.05), math.log(80.0), SIZE_BINS[1], u_w),
+            rbf(math.log(max(area_px * gsd * gsd, 1e-4)), math.log(0.005), math.log(2e4), SIZE_BINS[2], u_l + u_w),
         ])
-        blocks.append(("size", wt["size"] * _unit(size)))
+        blocks.append(("size", wt["size"] * unit(size)))
         fade = float(np.clip(2.0 - length_px / CONTRAST_FULL_PX, 0.0, 1.0))
         lab_all = rgb_to_lab(rgb)  # the whole crop (``lab`` is the pose-normalised object)
         if fade > 0:
             contrast = integrated_contrast(rgb, mask, gsd, lab_all)
-            blocks.append(("contrast", wt["contrast"] * fade * _unit(self._contrast(contrast))))
-            blocks.append(("contrast_dir", wt["contrast_dir"] * fade * _unit(self._contrast_dir(contrast))))
+            blocks.append(("contrast", wt["contrast"] * fade * unit(self._contrast(contrast))))
+            blocks.append(("contrast_dir", wt["contrast_dir"] * fade * unit(self._contrast_dir(contrast))))
         else:
             blocks.append(("contrast", np.zeros(3 * CONTRAST_BINS, np.float32)))
             blocks.append(("contrast_dir", np.zeros(3 * CONTRAST_DIR_BINS, np.float32)))
-        blocks.append(("edge_extent", wt["edge_extent"] * _unit(self._edge_extent(lab_all, gsd))))
+        blocks.append(("edge_extent", wt["edge_extent"] * unit(self._edge_extent(lab_all, gsd))))
         clutter, background = self._ring_context(lab_all)
         blocks.append(("clutter", wt["clutter"] * clutter))
         blocks.append(("background", wt["background"] * background))
@@ -598,12 +598,12 @@ class DefaultEmbedder:
         ib = ((np.clip(fg[:, 2], -47.9, 47.9) + 48.0) * (8 / 96.0)).astype(np.intp)
         ab = np.bincount(ia * 8 + ib, minlength=64).reshape(8, 8)
         ab = cv2.GaussianBlur(ab.astype(np.float32), (3, 3), 0.7)
-        blocks.append(("colour_ab", wt["colour_ab"] * _unit(np.sqrt(ab))))
+        blocks.append(("colour_ab", wt["colour_ab"] * unit(np.sqrt(ab))))
         lh = _hist(fg[:, 0], 0.0, 100.0, 10)
         lh = np.convolve(lh, [0.25, 0.5, 0.25], mode="same")
-        blocks.append(("colour_l", wt["colour_l"] * _unit(np.sqrt(lh))))
+        blocks.append(("colour_l", wt["colour_l"] * unit(np.sqrt(lh))))
         # colour layout along the body: 6 x 3 cells of mean Lab relative to the object's mean
-        blocks.append(("layout", wt["layout"] * _unit(self._layout(lab, cmask))))
+        blocks.append(("layout", wt["layout"] * unit(self._layout(lab, cmask))))
         # silhouette scalars
         cnts, _ = cv2.findContours(cmask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         hull_area = sum(cv2.contourArea(cv2.convexHull(c)) for c in cnts) if cnts else area_px
@@ -612,22 +612,22 @@ class DefaultEmbedder:
         hu = cv2.HuMoments(cv2.moments(cmask.astype(np.uint8), binaryImage=True)).ravel()
         hu_l = [-math.copysign(1.0, v) * math.log10(abs(v)) if abs(v) > 1e-30 else 30.0 for v in hu[:3]]
         shape = np.concatenate([
-            _rbf(elong, 0.0, 1.0, 16), _rbf(solidity, 0.3, 1.0, 12), _rbf(extent, 0.3, 1.0, 12),
-            _rbf(hu_l[0], 0.6, 1.4, 10), _rbf(hu_l[1], 1.0, 6.0, 10),
+            rbf(elong, 0.0, 1.0, 16), rbf(solidity, 0.3, 1.0, 12), rbf(extent, 0.3, 1.0, 12),
+            rbf(hu_l[0], 0.6, 1.4, 10), rbf(hu_l[1], 1.0, 6.0, 10),
         ])
-        blocks.append(("shape", wt["shape"] * _unit(shape)))
+        blocks.append(("shape", wt["shape"] * unit(shape)))
         # width profile along the length (bow/stern shape)
         cols = cmask.sum(axis=0).astype(np.float32)
         prof = cv2.resize(cols[None, :], (16, 1), interpolation=cv2.INTER_AREA).ravel() / max(width_px, 1)
-        blocks.append(("profile", wt["profile"] * _unit(np.concatenate([prof, [1.0]]))))
+        blocks.append(("profile", wt["profile"] * unit(np.concatenate([prof, [1.0]]))))
         # rotation-invariant radial spectrum (round objects: trees, buoys, rocks)
-        blocks.append(("radial", wt["radial"] * _unit(self._radial(mask))))
+        blocks.append(("radial", wt["radial"] * unit(self._radial(mask))))
         # gradients on the pose-normalised grey crop
         grey = lab[:, :, 0] * cmask + float(fg[:, 0].mean()) * (~cmask)
         canon = cv2.resize(grey.astype(np.float32), (self.CANON[1], self.CANON[0]), interpolation=cv2.INTER_AREA
                            if grey.shape[1] > self.CANON[1] else cv2.INTER_LINEAR)
-        blocks.append(("hog", wt["hog"] * _unit(np.sqrt(self._hog(canon)))))
-        blocks.append(("lbp", wt["lbp"] * _unit(np.sqrt(self._lbp(lab[:, :, 0], cmask)))))
+        blocks.append(("hog", wt["hog"] * unit(np.sqrt(self._hog(canon)))))
+        blocks.append(("lbp", wt["lbp"] * unit(np.sqrt(self._lbp(lab[:, :, 0], cmask)))))
         if slices is not None:
             start = 0
             for name, v in blocks:
@@ -638,14 +638,14 @@ class DefaultEmbedder:
     @staticmethod
     def _contrast(contrast: np.ndarray) -> np.ndarray:
         code = np.arcsinh(contrast / np.asarray(CONTRAST_A0))
-        return np.concatenate([_rbf(float(c), -12.0, 12.0, CONTRAST_BINS) for c in code])
+        return np.concatenate([rbf(float(c), -12.0, 12.0, CONTRAST_BINS) for c in code])
 
     @staticmethod
     def _contrast_dir(contrast: np.ndarray) -> np.ndarray:
         n = float(np.linalg.norm(contrast))
         if n <= 1e-9:
             return np.zeros(3 * CONTRAST_DIR_BINS, np.float32)
-        return np.concatenate([_rbf(float(c) / n, -1.0, 1.0, CONTRAST_DIR_BINS) for c in contrast])
+        return np.concatenate([rbf(float(c) / n, -1.0, 1.0, CONTRAST_DIR_BINS) for c in contrast])
 
     @staticmethod
     def _ring_context(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -653,10 +653,10 @@ class DefaultEmbedder:
         (neighbours, parked cars or boats in berths, cut the ring of a crowded crop; an isolated object's ring
         is plain background), and that median colour, faded in with the share (see ``BG_FULL``)."""
         share, med = _ring_clutter(lab[_crop_ring(*lab.shape[:2])])
-        clutter = _rbf(share, 0.0, 1.0, CLUTTER_BINS, CLUTTER_SIGMA)
-        colour = np.concatenate([_rbf(float(med[0]), 0.0, 100.0, 11), _rbf(float(med[1]), -30.0, 30.0, 13),
-                                 _rbf(float(med[2]), -30.0, 30.0, 13)])
-        return _unit(clutter), min(1.0, share / BG_FULL) * _unit(colour)
+        clutter = rbf(share, 0.0, 1.0, CLUTTER_BINS, CLUTTER_SIGMA)
+        colour = np.concatenate([rbf(float(med[0]), 0.0, 100.0, 11), rbf(float(med[1]), -30.0, 30.0, 13),
+                                 rbf(float(med[2]), -30.0, 30.0, 13)])
+        return unit(clutter), min(1.0, share / BG_FULL) * unit(colour)
 
     @staticmethod
     def _edge_extent(lab: np.ndarray, gsd: float) -> np.ndarray:
@@ -681,7 +681,7 @@ class DefaultEmbedder:
         for frac in (0.5, 0.85):
             rad = (min(int(np.searchsorted(cum, frac)), len(cum) - 1) / 2.0 + 0.5) * gsd
             # a radius of a few pixels is uncertain by about a pixel (as the size code)
-            code.append(_rbf(math.log(rad), math.log(0.05), math.log(200.0), EDGE_BINS, gsd / rad))
+            code.append(rbf(math.log(rad), math.log(0.05), math.log(200.0), EDGE_BINS, gsd / rad))
         return np.concatenate(code)
 
     @staticmethod

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import BackendUnavailable, InputError
 from ..registry import require
-from .embed import _as_rgb, _rbf, _unit, object_mask
+from .embed import as_rgb, object_mask, rbf, unit
 
 _VERSION = 1
 _IMAGENET_MEAN = (0.485, 0.456, 0.406)
@@ -170,12 +170,12 @@ class Dinov3Embedder:
         for i, (img, g) in enumerate(zip(images, gsds)):
             if not (g > 0 and math.isfinite(g)):
                 raise InputError(f"gsd {g!r} of image {i} must be a positive number of metres per pixel")
-            rgb = _as_rgb(img, i)
+            rgb = as_rgb(img, i)
             sq, length_px, width_px, _area = pose_crop(rgb, object_mask(rgb))
             crops.append(np.ascontiguousarray(sq))
-            sizes.append(_unit(np.concatenate([
-                _rbf(math.log(max(length_px * g, 1e-3)), math.log(0.1), math.log(400.0), 48),
-                _rbf(math.log(max(width_px * g, 1e-3)), math.log(0.05), math.log(80.0), 40),
+            sizes.append(unit(np.concatenate([
+                rbf(math.log(max(length_px * g, 1e-3)), math.log(0.1), math.log(400.0), 48),
+                rbf(math.log(max(width_px * g, 1e-3)), math.log(0.05), math.log(80.0), 40),
             ])))
         feats = []
         with torch.inference_mode():

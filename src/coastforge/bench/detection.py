@@ -160,7 +160,8 @@ def piers_found(structures: list[Truth], preds: list[Detection], min_cover: floa
     return found
 
 
-def _run(image: GeoImage, backend: str, config: DetectConfig, **opts) -> tuple[list[Detection], float]:
+def timed_detect(image: GeoImage, backend: str, config: DetectConfig,
+                 **opts) -> tuple[list[Detection], float]:
     """Detections and the detector's time. ``segment_config`` in ``opts``: segment first (not timed) and
     detect with the class map, as generate does."""
     from ..detection import detect
@@ -178,12 +179,12 @@ def _run(image: GeoImage, backend: str, config: DetectConfig, **opts) -> tuple[l
 
 def _try_run(name: str, image: GeoImage, backend: str, config: DetectConfig,
              **opts) -> tuple[list[Detection], float] | Score:
-    """``_run``, or a "n/a" row naming why the backend cannot run on this image (e.g. the learned
+    """``timed_detect``, or a "n/a" row naming why the backend cannot run on this image (e.g. the learned
     detector on 8 m/px satellite images): the other images are still measured."""
     from ..errors import InputError
 
     try:
-        return _run(image, backend, config, **opts)
+        return timed_detect(image, backend, config, **opts)
     except InputError as exc:
         return Score(name, gsd_m=image.grid.gsd_m, na=str(exc).split(";")[0])
 
@@ -288,7 +289,7 @@ def bench_synth(presets: list[str], seeds: list[int], backend: str, config: Dete
             for im in inputs.get("images", []):
                 gsd = float(im["gsd_m"])
                 img, objs, _piers = synth_truth(truth_path, out / im["path"], gsd)
-                dets, dt = _run(img, backend, config, **opts)
+                dets, dt = timed_detect(img, backend, config, **opts)
                 s = by_gsd.setdefault(gsd, Score(f"synthetic {gsd:g} m/px (all)", gsd_m=gsd))
                 for cat in ("boat", "vehicle", "buoy"):
                     t_c, d_c = [t for t in objs if t.category == cat], [d for d in dets if d.category == cat]
@@ -315,7 +316,7 @@ def bench_timing(backend: str, config: DetectConfig, size: int = 2048, repeats: 
     img = GeoImage(rgb=rgb, grid=Grid(size, size, 0.2))
     best = 1e9
     for _ in range(repeats):
-        _, dt = _run(img, backend, config)
+        _, dt = timed_detect(img, backend, config)
         best = min(best, dt)
     return best
 

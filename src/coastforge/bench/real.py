@@ -201,10 +201,10 @@ def seg_marina(config=None) -> dict:
 
 def _detect(image, cfg, with_classmap: bool):
     """Detections and seconds, as ``coastforge detect`` (``--segment`` with ``with_classmap``) runs them."""
-    from .detection import _run
+    from .detection import timed_detect
 
     opts = {"segment_config": cfg.segment} if with_classmap else {}
-    return _run(image, cfg.detect.backend, cfg.detect, **opts)
+    return timed_detect(image, cfg.detect.backend, cfg.detect, **opts)
 
 
 def _det_boxes(name: str, items: list, gsd_of: Callable[[Any], float], config, with_classmap: bool) -> dict:

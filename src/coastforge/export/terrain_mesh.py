@@ -56,7 +56,7 @@ def _axis_weights(coord: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return i0, (c - i0) if n > 1 else np.zeros_like(c)
 
 
-def _grid_corners(shape, rows: np.ndarray, cols: np.ndarray):
+def grid_corners(shape, rows: np.ndarray, cols: np.ndarray):
     """Corner indices and weights of the separable bilinear grid rows (ny,) × cols (nx,), clamped."""
     h, w = shape
     r0, tr = _axis_weights(rows, h)
@@ -64,14 +64,14 @@ def _grid_corners(shape, rows: np.ndarray, cols: np.ndarray):
     return (r0, np.minimum(r0 + 1, h - 1), tr), (c0, np.minimum(c0 + 1, w - 1), tc)
 
 
-def _grid_bilinear(src: np.ndarray, rows: np.ndarray, cols: np.ndarray, dtype=np.float64,
+def grid_bilinear(src: np.ndarray, rows: np.ndarray, cols: np.ndarray, dtype=np.float64,
                    block: int = 256) -> np.ndarray:
     """Bilinear samples of src (H, W) on the separable grid rows (ny,) × cols (nx,), clamped at the borders.
 
     Same values as ``map_coordinates(order=1, mode='nearest')`` but whole-array gathers instead of a
     per-sample loop, done ``block`` output rows at a time so memory stays at a few blocks even for
     8129² landscapes from 20 000² rasters (the source is never copied or converted as a whole)."""
-    (r0, r1, tr), (c0, c1, tc) = _grid_corners(src.shape, rows, cols)
+    (r0, r1, tr), (c0, c1, tc) = grid_corners(src.shape, rows, cols)
     out = np.empty((len(rows), len(cols)), dtype)
     tc_ = tc.astype(dtype)[None, :]
     for s0 in range(0, len(rows), block):
@@ -97,13 +97,13 @@ def _grid_index_axes(scene, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
 def resample_height(scene, nx: int, ny: int, dtype=np.float64) -> np.ndarray:
     """Heights (ny, nx) at the vertices of a grid spanning the extent (row 0 = north)."""
     rows, cols = _grid_index_axes(scene, nx, ny)
-    return _grid_bilinear(scene.height, rows, cols, dtype=dtype)
+    return grid_bilinear(scene.height, rows, cols, dtype=dtype)
 
 
 def class_weight(scene, k: int, rows: np.ndarray, cols: np.ndarray, block: int = 256) -> np.ndarray:
     """Weight (ny, nx) float32 of class k on the grid: bilinear resampling of its one-hot mask, computed
     from the four corner class ids (four compares per sample) a block of rows at a time."""
-    (r0, r1, tr), (c0, c1, tc) = _grid_corners(scene.classes.shape, rows, cols)
+    (r0, r1, tr), (c0, c1, tc) = grid_corners(scene.classes.shape, rows, cols)
     cls = scene.classes
     out = np.zeros((len(rows), len(cols)), np.float32)
     wc = tc.astype(np.float32)[None, :]

@@ -24,7 +24,7 @@ from .. import __version__
 from ..classes import N_CLASSES
 from ..errors import InputError
 from . import safe_name
-from .terrain_mesh import _grid_bilinear, _grid_corners, png_bytes, weights_to_u8
+from .terrain_mesh import grid_bilinear, grid_corners, png_bytes, weights_to_u8
 from .ue5 import LANDSCAPE_SIZES, LAYER_NAMES, WATER_VALUE, encode_heights, landscape_layout, scale_z_for
 
 FORMAT = "coastforge.ue5_tiles/1"
@@ -61,7 +61,7 @@ def _axes(shape: tuple[int, int], nx: int, ny: int) -> tuple[np.ndarray, np.ndar
 
 def _tile_weights(classes: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Per-class bilinear one-hot weights (K, len(rows), len(cols)) summing to 1."""
-    (r0, r1, tr), (c0, c1, tc) = _grid_corners(classes.shape, rows, cols)
+    (r0, r1, tr), (c0, c1, tc) = grid_corners(classes.shape, rows, cols)
     top, bot = classes[r0], classes[r1]
     corners = (top[:, c0], top[:, c1], bot[:, c0], bot[:, c1])
     wc, wr = tc[None, :], tr[:, None]
@@ -116,7 +116,7 @@ def export_ue5_tiles(scene, assets=None, config=None, tile_size: int = DEFAULT_T
         rs = slice(j * q, j * q + tile_size)
         for i in range(tx):
             cs_ = slice(i * q, i * q + tile_size)
-            z = _grid_bilinear(z_raster, rows_all[rs], cols_all[cs_])
+            z = grid_bilinear(z_raster, rows_all[rs], cols_all[cs_])
             zmin, zmax = min(zmin, float(z.min())), max(zmax, float(z.max()))
             h16 = encode_heights(z, scale_z)
             png = tile_name(f"heightmap/{base}", i, j, "png")

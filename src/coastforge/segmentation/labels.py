@@ -33,7 +33,7 @@ else:  # pragma: no cover
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
 
 
-def _class_id(v, where: str) -> int:
+def class_id(v, where: str) -> int:
     if isinstance(v, bool):
         raise InputError(f"{where}: {v!r} is not a class; use one of {', '.join(CLASS_NAMES)}")
     if isinstance(v, int) and 0 <= v < N_CLASSES:
@@ -85,11 +85,11 @@ def load_mapping(path: str | Path | dict) -> tuple[str, dict[int, int], int | No
     for k, v in table.items():
         kind, key = _parse_key(k, where)
         kinds.add(kind)
-        out[key] = _class_id(v, f"{where} [{k}]")
+        out[key] = class_id(v, f"{where} [{k}]")
     if len(kinds) > 1:
         raise InputError(f"{where}: mixes integer values and colours; use one kind of key")
     default = data.get("default")
-    return kinds.pop(), out, (None if default is None else _class_id(default, f"{where} default"))
+    return kinds.pop(), out, (None if default is None else class_id(default, f"{where} default"))
 
 
 def read_label_raster(path: str | Path, kind: str) -> np.ndarray:

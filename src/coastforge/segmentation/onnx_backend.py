@@ -26,7 +26,7 @@ from ..config import SegmentConfig
 from ..errors import BackendUnavailable, InputError
 from ..registry import require
 from ..types import ClassMap, GeoImage
-from .labels import _class_id
+from .labels import class_id
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -90,9 +90,9 @@ class OnnxSegmenter:
                 raise InputError(f"mapping key {k!r} must be a model class index (0..{n_out - 1})") from None
             if not 0 <= i < n_out:
                 raise InputError(f"mapping key {i} is outside the model's {n_out} output classes (0..{n_out - 1})")
-            lut[i] = _class_id(v, f"mapping [{k}]")
+            lut[i] = class_id(v, f"mapping [{k}]")
         if default is not None:
-            lut[lut < 0] = _class_id(default, "mapping default")
+            lut[lut < 0] = class_id(default, "mapping default")
         return lut
 
     def segment(self, image: GeoImage, seed: int = 0) -> ClassMap:

@@ -35,7 +35,7 @@ def _row(s) -> dict:
 
 
 def evaluate(backend: str, weights: str | None, data: Path | None, work: Path) -> dict:
-    from ..bench.detection import Score, _run, bench_synth, match, read_dota_yolo
+    from ..bench.detection import Score, timed_detect, bench_synth, match, read_dota_yolo
     from ..io import read_image
 
     cfg = DetectConfig()
@@ -47,7 +47,7 @@ def evaluate(backend: str, weights: str | None, data: Path | None, work: Path) -
         marina = data / "aerial" / "marina_p0861"
         if marina.is_dir():
             img = read_image(marina / "image.jpg", gsd_m=0.2)
-            dets, dt = _run(img, backend, cfg, **opts)
+            dets, dt = timed_detect(img, backend, cfg, **opts)
             lab = read_dota_yolo(marina / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
             s = Score("marina_p0861 boats")
             match([t for c, t in lab if c == "ship"], [d for d in dets if d.category == "boat"], s)
@@ -57,7 +57,7 @@ def evaluate(backend: str, weights: str | None, data: Path | None, work: Path) -
         veh = data / "aerial" / "vehicles_p1053"
         if veh.is_dir():
             img = read_image(veh / "image.jpg", gsd_m=0.125)
-            dets, dt = _run(img, backend, cfg, **opts)
+            dets, dt = timed_detect(img, backend, cfg, **opts)
             lab = read_dota_yolo(veh / "labels_yolo_obb.txt", img.grid.width_px, img.grid.height_px)
             s = Score("vehicles_p1053 vehicles")
             match([t for c, t in lab if c in ("small vehicle", "large vehicle")],
