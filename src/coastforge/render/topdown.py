@@ -25,7 +25,6 @@ from .objects import (
     PixelGrid,
     composite_instances,
     heightfield_shadow,
-    ray_backend,
     sun_vector,
 )
 from .terrain import (
