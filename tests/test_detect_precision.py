@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from coastforge.detection.refine import align_with_neighbours, drop_wakes, is_structure_piece, refine_boxes
+from coastforge.detection.refine import align_with_neighbours, refine_boxes
+from coastforge.detection.verify import drop_wakes, is_structure_piece
 from coastforge.frames import box_corners_px
 from coastforge.types import Detection, GeoImage, Grid
 

@@ -11,7 +11,8 @@ import pytest
 
 from coastforge.config import DetectConfig
 from coastforge.detection import detect
-from coastforge.detection.refine import is_buoy, refine_box, refine_boxes, symmetry_axis
+from coastforge.detection.refine import refine_box, refine_boxes, symmetry_axis
+from coastforge.detection.verify import is_buoy
 from coastforge.frames import box_corners_px, wrap_deg
 from coastforge.types import Detection, GeoImage, Grid
 
@@ -138,7 +139,7 @@ def test_a_large_dark_hull_is_kept_a_small_dark_patch_is_not():
     rgb = cv2.resize(big, (200, 160), interpolation=cv2.INTER_AREA)
     hull = Detection("boat", 0.6, 60.0, 80.0, 45.0, 17.0, 10.0)
     patch = Detection("boat", 0.5, 150.0, 80.0, 20.0, 8.0, 20.0)
-    from coastforge.detection.refine import core_evidence, is_dark_water
+    from coastforge.detection.verify import core_evidence, is_dark_water
 
     assert 0.8 <= core_evidence(rgb, hull, 0.2)["shadow"] < 0.95  # a dark-water-like core, yet ...
     assert not is_dark_water(rgb, hull, 0.2)  # ... yacht-sized: a dark hull

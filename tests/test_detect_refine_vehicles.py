@@ -1,5 +1,5 @@
 """Issue #6: vehicle axes at 0.2 m/px (``refine._vehicle_axis``), cars seen shifted onto the empty bay
-beside them (``refine.drop_shifted_cars``), boat specks (``refine.BOAT_MIN_M``) and white glints (``is_glint``)."""
+beside them (``verify.drop_shifted_cars``), boat specks (``refine.BOAT_MIN_M``) and white glints (``is_glint``)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from coastforge.detection.refine import (BOAT_MIN_M, SHIFTED_SCORE_RATIO, VEH_SYM_PRIOR, _vehicle_axis,
-                                         core_std_l, drop_shifted_cars, refine_boxes, symmetry_axis)
+from coastforge.detection.refine import BOAT_MIN_M, VEH_SYM_PRIOR, _vehicle_axis, refine_boxes, symmetry_axis
+from coastforge.detection.verify import SHIFTED_SCORE_RATIO, core_std_l, drop_shifted_cars
 from coastforge.frames import box_corners_px
 from coastforge.types import Detection
 
@@ -112,7 +112,7 @@ def test_boat_specks_are_dropped_and_small_boats_kept():
 
 
 def test_white_glints_on_a_wavy_sea_are_glints_where_the_ring_is_resolved():
-    from coastforge.detection.refine import is_glint
+    from coastforge.detection.verify import is_glint
 
     white_glint = {"ring_p10": -0.8, "ring_mean": 2.4, "tint": 0.47}  # lake_harbor seed 3, 0.1 m/px
     assert is_glint(white_glint, 0.1)
@@ -124,7 +124,7 @@ def test_white_glints_on_a_wavy_sea_are_glints_where_the_ring_is_resolved():
 
 
 def test_vehicle_boxes_on_blank_ground_are_dropped_but_dark_cars_kept():
-    from coastforge.detection.refine import is_blank_ground
+    from coastforge.detection.verify import is_blank_ground
 
     rng = np.random.default_rng(0)
     sand = np.clip(np.full((160, 160, 3), (200, 185, 150), np.float32) + rng.normal(0, 3, (160, 160, 1)), 0, 255)

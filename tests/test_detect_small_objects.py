@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from coastforge.detection.refine import boat_ends, buoy_features, is_buoy, is_glint, refine_box
+from coastforge.detection.refine import boat_ends, refine_box
+from coastforge.detection.verify import buoy_features, is_buoy, is_glint
 from coastforge.frames import box_corners_px
 from coastforge.types import Detection
 
@@ -115,7 +116,7 @@ def test_large_boats_keep_the_detector_length():
 
 
 def test_a_box_whose_middle_is_mostly_water_is_no_boat():
-    from coastforge.detection.refine import core_evidence, is_dark_water
+    from coastforge.detection.verify import core_evidence, is_dark_water
 
     # two pale foam blobs with churned, slightly paler water between them (a broken wake: as much
     # unlike the calm water as to pass the contrast test), and a pale hull
@@ -147,8 +148,8 @@ def test_a_box_whose_middle_is_mostly_water_is_no_boat():
     (dict(peak=30.0, area=0.12, aspect=2.0, ring_p10=-7.3, ring_mean=-5.5, tint=0.24), False),
 ])
 def test_a_faint_buoy_with_a_clear_shadow_of_its_own_colour_is_kept(monkeypatch, features, expected):
-    from coastforge.detection import refine
+    from coastforge.detection import verify
 
-    monkeypatch.setattr(refine, "buoy_features", lambda *a: features)
+    monkeypatch.setattr(verify, "buoy_features", lambda *a: features)
     det = Detection("buoy", 0.7, 10.0, 10.0, 5.0, 5.0, 0.0)
-    assert refine.is_buoy(np.zeros((20, 20, 3), np.uint8), det, GSD) is expected
+    assert verify.is_buoy(np.zeros((20, 20, 3), np.uint8), det, GSD) is expected

@@ -15,30 +15,30 @@ def _rng(seed: int = 0) -> np.random.Generator:
 
 
 def test_lab_cache_windows_equal_converting_each_window():
-    from coastforge.detection.refine import LabCache, _lab_window
+    from coastforge.detection.crops import LabCache, lab_window
 
     rgb = (_rng().random((150, 170, 3)) * 255).astype(np.uint8)
     cache = LabCache(rgb)
-    _lab_window(cache, 20.0, 20.0, 5.0)
+    lab_window(cache, 20.0, 20.0, 5.0)
     assert cache.done.any() and not cache.done.all()  # only the blocks asked for are converted
     r = _rng(1)
     for _ in range(60):  # overlapping windows, some clipped at the image's borders
         cx, cy, reach = r.uniform(-10, 180), r.uniform(-10, 160), r.uniform(1, 60)
-        a, oa = _lab_window(rgb, cx, cy, reach)
-        b, ob = _lab_window(cache, cx, cy, reach)
+        a, oa = lab_window(rgb, cx, cy, reach)
+        b, ob = lab_window(cache, cx, cy, reach)
         assert oa == ob and np.array_equal(a, b)
     with pytest.raises(ValueError):  # read-only views: the cache cannot be corrupted by a caller
         b[...] = 0
 
 
 def test_lab_cache_without_a_full_buffer_for_huge_images(monkeypatch):
-    from coastforge.detection.refine import LabCache, _lab_window
+    from coastforge.detection.crops import LabCache, lab_window
 
     monkeypatch.setattr(LabCache, "MAX_PIXELS", 100)
     rgb = (_rng().random((40, 50, 3)) * 255).astype(np.uint8)
     cache = LabCache(rgb)
     assert cache.lab is None
-    assert np.array_equal(_lab_window(cache, 20, 20, 9)[0], _lab_window(rgb, 20, 20, 9)[0])
+    assert np.array_equal(lab_window(cache, 20, 20, 9)[0], lab_window(rgb, 20, 20, 9)[0])
 
 
 def _mirror_cost_reference(crop, ci, half_v, shifts):
@@ -92,7 +92,7 @@ def _background_modes_reference(ring, core, k=3, iters=6, min_share=0.12, max_in
 
 @pytest.mark.parametrize("seed", range(8))
 def test_background_modes_equal_the_reference(seed):
-    from coastforge.detection.refine import background_modes
+    from coastforge.detection.crops import background_modes
 
     r = _rng(seed)
     n = int(r.integers(20, 3000))
@@ -109,7 +109,7 @@ def test_background_modes_equal_the_reference(seed):
 
 
 def test_median_and_squared_distance_helpers_equal_numpy():
-    from coastforge.detection.refine import _median0, _sq_dist
+    from coastforge.detection.crops import _median0, sq_dist
 
     r = _rng(3)
     for n in (1, 2, 3, 10, 11, 400, 401):
@@ -118,7 +118,7 @@ def test_median_and_squared_distance_helpers_equal_numpy():
     crop = r.random((30, 40, 3), dtype=np.float32) * 100
     for m in (np.array([50.0, 3.0, -7.0]), np.array([50.0, 3.0, -7.0], np.float32)):
         ref = ((crop - m) ** 2).sum(-1)
-        got = _sq_dist(crop, m)
+        got = sq_dist(crop, m)
         assert got.dtype == ref.dtype and np.array_equal(got, ref)
 
 
