@@ -441,7 +441,8 @@ def parking_image(seed: int = 0, gsd: float = 0.4):
 
 
 def test_greenness_tells_a_canopy_from_a_row_of_dark_cars():
-    from coastforge.segmentation.classical import TREE_MIN_GREEN, compute_features, greenness, pavement_exg
+    from coastforge.segmentation.features import compute_features
+    from coastforge.segmentation.land import TREE_MIN_GREEN, greenness, pavement_exg
 
     image, cars, canopy = parking_image()
     F = compute_features(image.rgb, image.grid.gsd_m)
@@ -465,7 +466,8 @@ def test_classical_car_row_is_pavement_and_canopy_stays_trees():
 
 def test_parked_cars_mask_needs_pavement_texture_and_no_green():
     from coastforge.classes import ASPHALT as A
-    from coastforge.segmentation.classical import compute_features, greenness, land_seeds, parked_cars
+    from coastforge.segmentation.features import compute_features
+    from coastforge.segmentation.land import greenness, land_seeds, parked_cars
 
     image, cars, canopy = parking_image(seed=2)
     F = compute_features(image.rgb, image.grid.gsd_m)
@@ -481,7 +483,8 @@ def test_parked_cars_mask_needs_pavement_texture_and_no_green():
 
 def test_refine_land_edges_moves_a_shifted_border_back():
     from coastforge.classes import GRASS as G
-    from coastforge.segmentation.classical import compute_features, refine_land_edges
+    from coastforge.segmentation.features import compute_features
+    from coastforge.segmentation.land import refine_land_edges
 
     n, gsd = 120, 0.4
     rng = np.random.default_rng(0)
@@ -506,7 +509,8 @@ def test_land_seeds_pale_grass_is_not_asphalt_and_rough_bank_is_rocks():
     """Pale, dry grass (grey enough for the asphalt colour rule) is greener than the image's pavement,
     so it seeds no asphalt; rough grey ground on the bank seeds rocks, the same ground inland does not."""
     from coastforge.classes import ROCKS
-    from coastforge.segmentation.classical import compute_features, greenness, land_seeds
+    from coastforge.segmentation.features import compute_features
+    from coastforge.segmentation.land import greenness, land_seeds
 
     n, gsd = 150, 0.4
     rng = np.random.default_rng(3)
@@ -547,7 +551,7 @@ def test_cleaning_benchmark_restores_the_surface_under_removed_boats():
 
 def test_fold_rows_gives_car_rows_to_pavement_only_where_rocks_would_win():
     from coastforge.classes import ROCKS
-    from coastforge.segmentation.classical import CAR_ROW, _fold_rows
+    from coastforge.segmentation.land import CAR_ROW, fold_rows
 
     classes = np.array([ASPHALT, 2, TREES, ROCKS, CAR_ROW])  # 2 = sidewalk
     proba = np.array([
@@ -556,7 +560,7 @@ def test_fold_rows_gives_car_rows_to_pavement_only_where_rocks_would_win():
         [0.05, 0.05, 0.30, 0.10, 0.50],  # a dark crown: the row's share is dropped, trees stay
         [0.00, 0.00, 0.00, 0.00, 1.00],  # only the row class explains it: left to its neighbours
     ], np.float32)
-    kept, out = _fold_rows(classes, proba)
+    kept, out = fold_rows(classes, proba)
     assert list(kept) == [ASPHALT, 2, TREES, ROCKS]
     assert np.allclose(out[:3].sum(axis=1), 1.0) and not out[3].any()
     assert out[0].argmax() == 0 and out[1].argmax() == 1 and out[2].argmax() == 2
@@ -586,7 +590,7 @@ def test_hazy_asphalt_is_not_sidewalk():
     park sidewalk)."""
     from coastforge.classes import SIDEWALK
     from coastforge.segmentation import segment
-    from coastforge.segmentation.classical import _paving_split
+    from coastforge.segmentation.land import _paving_split
 
     rng = np.random.default_rng(0)
     n, gsd = 300, 0.4

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from coastforge.classes import ASPHALT, SIDEWALK
-from coastforge.segmentation.classical import compute_features, footpaths, land_seeds
+from coastforge.segmentation.features import compute_features
+from coastforge.segmentation.land import footpaths, land_seeds
 
 
 def _park(gsd: float = 0.4, seed: int = 0):
@@ -94,7 +95,7 @@ def test_riprap_that_averages_out_on_the_working_raster_is_not_sidewalk():
     segmented as path)."""
     import cv2
 
-    from coastforge.segmentation.classical import fine_texture
+    from coastforge.segmentation.features import fine_texture
 
     full, paving, stones = _pavement_and_stones()
     small = cv2.resize(full, (120, 80), interpolation=cv2.INTER_AREA)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from coastforge.classes import ASPHALT, ROCKS, SAND, TREES
-from coastforge.segmentation.classical import _sandy, compute_features, shaded_continuation, shaded_crowns
+from coastforge.segmentation.features import compute_features
+from coastforge.segmentation.land import _sandy, shaded_continuation, shaded_crowns
 
 GSD = 0.25
 
