@@ -1,7 +1,7 @@
 """Scale benchmark: ``python -m coastforge.bench.scale``.
 
 1. Image size: peak memory (the process tree's resident set, sampled with psutil, and the child's own
-   ``ru_maxrss``) and wall time of ``tiling.generate_tiled`` on synthetic GeoTIFF squares (1k, 4k, 8k,
+   ``ru_maxrss``) and wall time of ``pipeline.generate_tiled`` on synthetic GeoTIFF squares (1k, 4k, 8k,
    16k px by default). Each run is a fresh child process, so its peak is its own.
 2. Cost per pixel: a tiled run (4096² in 2048 px tiles by default) against a whole-image run (2048²) of the
    same synthetic coast, per pixel: wall time and the CPU of the process tree, in total and per stage

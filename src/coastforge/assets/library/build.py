@@ -198,7 +198,7 @@ def build_library(src: str | Path | None, out: str | Path, embedder: str = "defa
     notes = {aid: tuple(records[aid].get("notes", ())) for aid in records}
     lib.build_report = BuildReport(tuple(rendered), tuple(reused), tuple(embedded), tuple(skipped), notes,
                                    time.perf_counter() - t0, lib.index.rows)
-    lib._embedder = emb
+    lib.embedder = emb
     say(f"library {shown}: {len(records)} assets ({len(rendered)} rendered, {len(reused)} reused), "
         f"{len(skipped)} skipped, {lib.index.rows} index rows")
     return lib

@@ -230,6 +230,11 @@ class Library:
             self._embedder = emb
         return self._embedder
 
+    @embedder.setter
+    def embedder(self, emb) -> None:
+        """The embedder a build just used (it made this library's rows: no second one is created)."""
+        self._embedder = emb
+
     def check_embedder(self, emb) -> None:
         rec = self.doc["embedder"]
         old_v = rec.get("settings", {}).get("version") if isinstance(rec.get("settings"), dict) else None
