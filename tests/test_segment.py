@@ -569,18 +569,18 @@ def test_fold_rows_gives_car_rows_to_pavement_only_where_rocks_would_win():
 
 def test_merge_small_keeps_a_fragmented_crown_in_pavement():
     from coastforge.classes import ROCKS
-    from coastforge.segmentation.classical import _merge_small
+    from coastforge.segmentation.classical import merge_small
 
     ids = np.full((60, 60), ASPHALT, np.uint8)
     ids[20:24, 20:30] = TREES  # a crown read as three fragments, each below the minimum region
     ids[24:28, 20:30] = GRASS
     ids[28:30, 20:30] = ROCKS
     ids[24:26, 22:28] = TREES
-    out = _merge_small(ids, 60, fixed=np.zeros(ids.shape, bool))
+    out = merge_small(ids, 60, fixed=np.zeros(ids.shape, bool))
     assert (out[20:30, 20:30] == TREES).all()
     # on a lawn the same fragments are noise and join the lawn
     lawn = np.where(ids == ASPHALT, GRASS, ids).astype(np.uint8)
-    out = _merge_small(lawn, 60, fixed=np.zeros(ids.shape, bool))
+    out = merge_small(lawn, 60, fixed=np.zeros(ids.shape, bool))
     assert (out == GRASS).all()
 
 

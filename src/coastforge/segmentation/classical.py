@@ -389,7 +389,7 @@ def _fragmented_crowns(ids: np.ndarray, small: np.ndarray, min_px: int) -> np.nd
     return ok[lab] & small
 
 
-def _merge_small(ids: np.ndarray, min_px: int, fixed: np.ndarray) -> np.ndarray:
+def merge_small(ids: np.ndarray, min_px: int, fixed: np.ndarray) -> np.ndarray:
     """Regions smaller than ``min_px`` take the class of the nearest larger region (``fixed`` kept),
     except crowns in pavement that were split into such regions (``_fragmented_crowns``)."""
     if min_px <= 1:
@@ -569,7 +569,7 @@ class ClassicalSegmenter:
                 ids = shaded_crowns(ids, F, land)
                 ids = shaded_continuation(ids, F, land, SAND, into=(ROCKS,))
         min_px = int(round(cfg.min_region_m2 / (gsd_m * gsd_m)))
-        ids = _merge_small(ids, min_px, fixed=water)
+        ids = merge_small(ids, min_px, fixed=water)
         ids[water] = WATER
         ids[(ids == WATER) & ~water] = ASPHALT  # land that bordered nothing but water
         return ids, water, F, open_water

@@ -279,10 +279,10 @@ def _merge_specks(p: np.ndarray, min_px: float) -> np.ndarray:
     """Land specks under ``min_px`` working pixels take the class of the nearest larger region (in place, as
     one-hot probabilities, so the later bilinear upsampling keeps smooth borders); water stays as it is.
     Returns the class ids after the merge."""
-    from .classical import _merge_small
+    from .classical import merge_small
 
     ids = p.argmax(axis=2).astype(np.uint8)
-    merged = _merge_small(ids, int(round(min_px)), fixed=ids == WATER)
+    merged = merge_small(ids, int(round(min_px)), fixed=ids == WATER)
     ch = merged != ids
     if ch.any():
         p[ch] = 0.0

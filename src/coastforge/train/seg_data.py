@@ -3,7 +3,7 @@
 
 ``python -m coastforge.train.seg_data --out DIR --seeds 2000:2240`` writes ``<preset>_<seed>.png`` (RGB)
 and ``<preset>_<seed>_classes.png`` (ids) per level and an ``index.json``. Rendering goes through
-``coastforge.synth_render`` (lighting, tints, clutter, blur, noise, JPEG). Seeds below 100 are refused:
+``coastforge.synth.render`` (lighting, tints, clutter, blur, noise, JPEG). Seeds below 100 are refused:
 the segmentation benchmark (seeds 1, 2) and ``coastforge benchmark`` (seed 0) use them, so validation
 levels never leak into training.
 """
