@@ -63,6 +63,34 @@ def affine_boxes(boxes: np.ndarray, M: np.ndarray, scale: float, angle_deg: floa
     return out
 
 
+OBJECT_RECOLOUR_P = 0.5  # share of rendered crops whose objects are recoloured one by one
+
+
+def recolour_objects(img: np.ndarray, boxes: np.ndarray, rng: np.random.Generator, shrink: float = 0.85) -> np.ndarray:
+    """Each oriented (rendered) object of the crop gets, with probability 0.6, its own hue turn, saturation
+    and brightness inside its box (shrunk so that little of the water around it changes): hulls and car
+    bodies of colours no model in the renders has, independent of the background (a global hue turn moves
+    water and hulls together). Axis-aligned real boxes hold too much background and are left alone."""
+    todo = [b for b in boxes if len(b) > 6 and b[6] > 0.5 and rng.random() < 0.6]
+    if not todo:
+        return img
+    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV)
+    h, s, v = (hsv[..., i].astype(np.int16) for i in range(3))
+    for b in todo:
+        _c, cx, cy, L, W, yaw = (float(x) for x in b[:6])
+        poly = cv2.boxPoints(((cx, cy), (max(L * shrink, 1.0), max(W * shrink, 1.0)), -yaw)).astype(np.int32)
+        m = np.zeros(img.shape[:2], np.uint8)
+        cv2.fillConvexPoly(m, poly, 1)
+        m = m.astype(bool)
+        if not m.any():
+            continue
+        h[m] = (h[m] + int(rng.integers(0, 180))) % 180
+        s[m] = np.clip(s[m] * rng.uniform(0.6, 2.0) + rng.uniform(0, 60), 0, 255).astype(np.int16)
+        v[m] = np.clip(v[m] * rng.uniform(0.45, 1.15), 0, 255).astype(np.int16)
+    out = np.stack([h, s, v], 2).astype(np.uint8)
+    return cv2.cvtColor(out, cv2.COLOR_HSV2RGB)
+
+
 def photometric(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Colour, hue, blur, noise and JPEG randomisation (uint8 RGB in, uint8 out)."""
     x = img.astype(np.float32)
@@ -216,6 +244,8 @@ class Sampler:
             if len(bx):
                 bx[:, 1] = C - bx[:, 1]
                 bx[:, 5] = (180.0 - bx[:, 5] + 180.0) % 360.0 - 180.0
+        if len(bx) and rng.random() < OBJECT_RECOLOUR_P:
+            crop = recolour_objects(crop, bx, rng)
         return photometric(crop, rng), bx, labelled
 
 
