@@ -698,7 +698,7 @@ def test_cli_export_with_starter_kit(tmp_path):
         from coastforge.assets.kit import kit_assets
 
         kit = kit_assets()
-    except Exception as exc:  # the kit is built by another module; skip until it is installed
+    except Exception as exc:  # noqa: BLE001 - the kit is built by another module; skip until it is installed
         pytest.skip(f"starter kit not available: {exc}")
     from coastforge.scene import save_scene
 
@@ -770,7 +770,7 @@ def test_default_resolver_library_then_kit_then_error():
         from coastforge.assets.kit import kit_assets
 
         kit_id = kit_assets()[0].id
-    except Exception as exc:  # the kit is another module's; skip until installed
+    except Exception as exc:  # noqa: BLE001 - the kit is another module's; skip until installed
         pytest.skip(f"starter kit not available: {exc}")
     assert r.ue_path(kit_id) is None and r.mesh_path(kit_id).suffix == ".glb"
     assert len(r.mesh(kit_id).faces) > 0

@@ -378,7 +378,7 @@ def _read_geographic(src, path: Path, gsd_m, size_m, cfg: IOConfig, stages=None)
         lon0, lat0, lon1, lat1 = transform_bounds(src.crs, "EPSG:4326", *src.bounds)
         dst_crs = _utm_crs((lon0 + lon1) / 2, (lat0 + lat1) / 2)
         transform, w, h = calculate_default_transform(src.crs, dst_crs, src.width, src.height, *src.bounds)
-    except Exception as exc:  # noqa: BLE001 - GDAL raises its own CPLE_* types (e.g. metres under a lat/lon CRS)
+    except Exception as exc:  # GDAL raises its own CPLE_* types (e.g. metres under a lat/lon CRS)
         raise InputError(f"{path} claims a geographic CRS ({src.crs.to_string()}) but its bounds {tuple(src.bounds)} "
                          f"cannot be reprojected ({exc}); check its CRS and transform (gdalinfo)") from exc
     res = (abs(transform.a) + abs(transform.e)) / 2.0

@@ -159,7 +159,7 @@ def _coloured(g):
             colors = np.hstack([colors, np.full((len(colors), 1), 255, np.uint8)])
         if colors.shape != (len(g.vertices), 4):
             raise ValueError("no per-vertex colours")
-    except Exception:  # no material / broken texture: neutral grey keeps the geometry usable
+    except Exception:  # noqa: BLE001 - no material / broken texture: neutral grey keeps the geometry usable
         colors = np.tile(np.array([[180, 180, 180, 255]], np.uint8), (len(g.vertices), 1))
     g.visual = trimesh.visual.ColorVisuals(g, vertex_colors=colors)
     return g

@@ -379,7 +379,7 @@ def main(argv=None) -> None:
             for s in args.synth_seeds:
                 try:
                     more, why = synth_levels(s)
-                except Exception as exc:  # another stage's code: report, do not lose the other figures
+                except Exception as exc:  # noqa: BLE001 - another stage's code: report, do not lose the other figures
                     more, why = [], f"synthetic levels failed: {type(exc).__name__}: {exc}"
                 levels += more
             sq = synth_queries(lib, levels) if levels else []

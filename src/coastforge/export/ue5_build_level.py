@@ -396,7 +396,7 @@ def main(argv=None):
         unreal = None
         if not dry:
             try:
-                import unreal  # noqa: F811  (only inside the Unreal Editor)
+                import unreal  # only inside the Unreal Editor
             except ImportError:
                 print("This script runs inside the Unreal Editor (Python Editor Script Plugin). "
                       "Use --dry-run to preview it here.")
