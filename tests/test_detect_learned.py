@@ -14,7 +14,7 @@ from coastforge.types import GeoImage, Grid
 
 pytest.importorskip("onnxruntime")
 
-from coastforge.detection.learned import LearnedDetector, decode, default_weights  # noqa: E402
+from coastforge.detection.learned import LearnedDetector, decode, default_weights
 
 
 def _maps(n=16, c=3):

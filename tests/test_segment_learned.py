@@ -15,7 +15,7 @@ from coastforge.types import GeoImage, Grid
 
 pytest.importorskip("onnxruntime")
 
-from coastforge.segmentation import learned  # noqa: E402
+from coastforge.segmentation import learned
 
 
 def _scene(n: int = 256, seed: int = 0) -> np.ndarray:

@@ -69,12 +69,12 @@ class Vegetation:
         return len(self.x_m)
 
     @staticmethod
-    def empty() -> "Vegetation":
+    def empty() -> Vegetation:
         e = np.zeros(0)
         return Vegetation(np.array([], dtype=object), np.array([], dtype=object), e, e, e, e, e)
 
     @staticmethod
-    def from_rows(rows: list[dict]) -> "Vegetation":
+    def from_rows(rows: list[dict]) -> Vegetation:
         if not rows:
             return Vegetation.empty()
         return Vegetation(
@@ -122,11 +122,11 @@ class Scene:
         gsd = self.extent_m[0] / w
         return Grid(w, h, gsd, self.crs, tuple(self.transform) if self.transform else None)
 
-    def with_objects(self, objects) -> "Scene":
+    def with_objects(self, objects) -> Scene:
         return replace(self, objects=tuple(objects))
 
     @classmethod
-    def load(cls, path: str | Path, rasters: bool = True) -> "Scene":
+    def load(cls, path: str | Path, rasters: bool = True) -> Scene:
         """The scene in ``path``: a scene folder, its ``scene.json``, or a synthetic level's ``truth.json``
         (``load_scene``). Raises ``SceneFormatError`` naming what is missing or malformed."""
         return load_scene(path, rasters=rasters)

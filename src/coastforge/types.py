@@ -42,7 +42,7 @@ class Grid:
         w, h = self.extent_m
         return (self.gsd_m, 0.0, -w / 2.0, 0.0, -self.gsd_m, h / 2.0)
 
-    def resized(self, width_px: int, height_px: int) -> "Grid":
+    def resized(self, width_px: int, height_px: int) -> Grid:
         """The same extent on another pixel grid (gsd follows the width)."""
         gsd = self.extent_m[0] / width_px
         t = None

@@ -108,7 +108,7 @@ def _side_files(path: Path) -> set[Path]:
     return {p for p in out if p.is_file()}
 
 
-def load_mesh(path: str | Path, asset_id: str = "") -> "trimesh.Trimesh":  # noqa: F821
+def load_mesh(path: str | Path, asset_id: str = "") -> trimesh.Trimesh:  # noqa: F821
     """Read a model file into one triangle mesh with vertex colours (textures sampled per vertex)."""
     import trimesh
 
@@ -291,7 +291,7 @@ def normalise_mesh(mesh, category: str, *, asset_id: str = "", length_m: float |
         notes.append(note or f"forward {axis_name(*fwd)}: the long horizontal axis ({category} has no front)")
     rot = _rotation(up, fwd)
     ext = np.ptp(np.asarray(mesh.vertices, float) @ rot.T, axis=0)
-    if length_m is not None and length_m <= 0 or height_m is not None and height_m <= 0:
+    if (length_m is not None and length_m <= 0) or (height_m is not None and height_m <= 0):
         raise LibraryError(f"asset {name!r}: length_m/height_m must be positive, got {length_m}/{height_m}")
     if length_m is not None:
         long_h = max(ext[0], ext[1])

@@ -35,7 +35,7 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..rng import stage_rng
 from .segmentation import SHARED as SHARED_DATA  # ../shared/data beside the project

@@ -33,7 +33,6 @@ import numpy as np
 from ..classes import WATER
 from ..config import DetectConfig
 from ..types import ClassMap, Detection, GeoImage
-from . import values_under_box
 
 PIERS = ("pier_walkway", "pier_finger")
 UNION_IOA = 0.3

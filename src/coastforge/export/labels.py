@@ -149,5 +149,14 @@ def instances_json(scene) -> bytes:
     return (json.dumps(instances_table(scene), indent=2, ensure_ascii=False, allow_nan=False) + "\n").encode("utf-8")
 
 
-__all__ = ["instances_table", "instances_json", "labels_by_id", "vegetation_label", "HOLOOCEAN_LABELS", "FLOAT_TAG",
-           "is_floating", "object_class", "object_label"]
+__all__ = [
+    "FLOAT_TAG",
+    "HOLOOCEAN_LABELS",
+    "instances_json",
+    "instances_table",
+    "is_floating",
+    "labels_by_id",
+    "object_class",
+    "object_label",
+    "vegetation_label",
+]

@@ -12,7 +12,8 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
 
@@ -215,7 +216,7 @@ def _stages(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, ti
                           report_path, warnings)
 
 
-def _with_timings(scene: Scene, timings: dict, timer: Timer, bg: "Background") -> Scene:
+def _with_timings(scene: Scene, timings: dict, timer: Timer, bg: Background) -> Scene:
     """The scene with its stage timings and what ran beside the main chain (CPU contention makes the stages
     slower by about that much) in its provenance."""
     return replace(scene, provenance={**scene.provenance, "timings_s": dict(timings),

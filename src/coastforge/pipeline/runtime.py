@@ -13,7 +13,7 @@ import threading
 import time
 from contextlib import contextmanager
 from enum import Enum
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
 
 # images at least this big (pixels) get a side process; below, its start-up costs more than it saves
 SIDE_PROCESS_MIN_PX = 1_500_000
@@ -34,7 +34,7 @@ class Job(str, Enum):
     PCG = "pcg"  # the vegetation masks
 
     @classmethod
-    def of(cls, name: "Job | str") -> "Job":
+    def of(cls, name: Job | str) -> Job:
         """``name`` as a ``Job``; an unknown name raises ``ValueError`` naming the known ones."""
         try:
             return cls(name)
@@ -143,7 +143,7 @@ class SideProcess:
         self._futures: list = []
 
     @classmethod
-    def start(cls, n_px: int, warm_up: Callable[[], None] | None = None) -> "SideProcess | None":
+    def start(cls, n_px: int, warm_up: Callable[[], None] | None = None) -> SideProcess | None:
         """A side process for an image of ``n_px`` pixels, or None; ``warm_up`` (a module-level function)
         runs in it first (its imports, while the main process starts on the chain)."""
         import multiprocessing

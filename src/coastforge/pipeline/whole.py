@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -21,7 +21,7 @@ class WholeImage:
     image: GeoImage
 
     @classmethod
-    def read(cls, req: GenerateRequest, config: Config) -> "WholeImage":
+    def read(cls, req: GenerateRequest, config: Config) -> WholeImage:
         from ..io import read_image
 
         return cls(read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config))

@@ -8,7 +8,7 @@ occupancy, mooring habits), so every seed gives a different level of the same ki
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from shapely.geometry import LineString, Point

@@ -9,7 +9,8 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 from ...classes import ASSET_CATEGORIES
 from ...errors import LibraryError

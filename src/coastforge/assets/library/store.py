@@ -6,7 +6,8 @@ import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -83,7 +84,7 @@ class Library:
     # -- loading
     @classmethod
     def load(cls, path: str | Path, embedder: str | None = None, weights: str | Path | None = None,
-             check_files: bool = True) -> "Library":
+             check_files: bool = True) -> Library:
         """Open a library folder (or its library.json). ``embedder`` (a name) must match the one it was built
         with; ``weights`` overrides the recorded weights folder of a weights-based embedder. ``check_files``:
         refuse a library missing a file it lists (a view, a silhouette, a model copy)."""

@@ -8,7 +8,8 @@ import dataclasses
 import hashlib
 import math
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
