@@ -16,6 +16,7 @@ from coastforge.detection.yolo import (YoloDetector, box_from_xywhr, results_to_
 from coastforge.errors import BackendUnavailable, InputError
 from coastforge.frames import wrap_half_deg
 from coastforge.types import GeoImage, Grid
+import itertools
 
 
 def _image(w=300, h=200):
@@ -27,7 +28,7 @@ def test_slice_windows_cover_with_overlap():
     wins = slice_windows(2500, 1000, 1024, 128)
     cols = sorted({w[0] for w in wins})
     assert cols[0] == 0 and wins[-1][2] == 2500 and all(c1 - c0 <= 1024 for c0, _r0, c1, _r1 in wins)
-    assert all(b - a <= 1024 - 128 for a, b in zip(cols, cols[1:]))
+    assert all(b - a <= 1024 - 128 for a, b in itertools.pairwise(cols))
     assert slice_windows(500, 400, 1024, 128) == [(0, 0, 500, 400)]
     with pytest.raises(InputError, match="slice_px"):
         slice_windows(100, 100, 64, 64)
@@ -35,7 +36,7 @@ def test_slice_windows_cover_with_overlap():
 
 def test_box_from_xywhr_long_side_is_length():
     # ultralytics: side w along image direction (cos r, sin r), rows down
-    cx, cy, length, width, yaw = box_from_xywhr(10, 20, 40, 10, np.deg2rad(30))
+    _cx, _cy, length, width, yaw = box_from_xywhr(10, 20, 40, 10, np.deg2rad(30))
     assert (length, width) == (40, 10) and yaw == pytest.approx(-30.0)  # 30 deg clockwise on screen
     _c, _r, length, width, yaw = box_from_xywhr(10, 20, 10, 40, np.deg2rad(30))
     assert (length, width) == (40, 10) and abs(wrap_half_deg(yaw - 60.0)) < 1e-9

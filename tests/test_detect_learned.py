@@ -103,7 +103,7 @@ def test_training_targets_decode_back():
     peaks = np.where(heat >= pooled, heat, 0)
     rows = decode(peaks, reg, 0.99)
     assert len(rows) == 1 and wmask.sum() >= 1 and amask.sum() == wmask.sum() == smask.sum()
-    c, _s, cx, cy, L, W, yaw, _conf = rows[0]
+    _c, _s, cx, cy, L, W, yaw, _conf = rows[0]
     assert (cx, cy) == pytest.approx(tuple(moved[0, 1:3]), abs=1e-3)
     assert (L, W) == pytest.approx((36.0 * 1.1, 11.0 * 1.1), rel=1e-3)
     assert yaw == pytest.approx(moved[0, 5], abs=1e-3)

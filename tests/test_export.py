@@ -244,7 +244,7 @@ def test_build_level_against_recording_unreal(out, scene, capsys):
     assert rec.named("LevelEditorSubsystem.new_level_from_template")[0][0][1:] == (
         "/Game/Coastforge/Maps/Test_Harbor", CFG.template_level)
     # landscape: transform and the heights that arrived through the RGBA8 render target
-    land = [a for a in rec.world_actors if isinstance(a, unreal_stub.Landscape)][0]
+    land = next(a for a in rec.world_actors if isinstance(a, unreal_stub.Landscape))
     ls = spec["landscape"]
     assert (land.location.x, land.location.y, land.location.z) == pytest.approx(tuple(ls["location"]))
     assert (land.scale.x, land.scale.y, land.scale.z) == pytest.approx(tuple(ls["scale"]))
@@ -476,7 +476,7 @@ def test_gltf_passes_khronos_validator(out):
 
 
 def test_gltf_round_trip_y_up(out, scene):
-    doc, binary = read_glb((out / "gltf" / "Test_Harbor.glb").read_bytes())
+    doc, _binary = read_glb((out / "gltf" / "Test_Harbor.glb").read_bytes())
     nodes = {n["name"]: n for n in doc["nodes"]}
     for o in scene.objects:
         n = nodes[o.id]

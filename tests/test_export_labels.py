@@ -109,7 +109,7 @@ def _table(out: Path) -> dict:
 
 
 def test_generate_writes_one_label_table(generated):
-    out, res = generated
+    out, _res = generated
     scene = load_scene(out)
     t = _table(out)
     assert [r["id"] for r in t["objects"]] == [o.id for o in scene.objects]
@@ -243,7 +243,7 @@ def load_like_holoocean(scenario: dict, world_entry: dict) -> list[str]:
     sensor faster than ``ticks_per_sec`` and rounds (with a printed message) a rate that does not divide it.
     Returns those rounding messages."""
     package_config = {"worlds": [world_entry]}
-    world = [w for w in package_config["worlds"] if w["name"] == scenario["world"]][0]  # IndexError: not listed
+    world = next(w for w in package_config["worlds"] if w["name"] == scenario["world"])  # StopIteration: not listed
     _ = world["pre_start_steps"]
     assert "env_min" in scenario or "env_min" in world
     ticks = scenario.get("ticks_per_sec", 30)

@@ -752,7 +752,7 @@ def test_library_glbs_are_gltf_y_up_and_load_back_z_up(tmp_path):
     ext = raw.extents
     assert ext[1] < ext[0] and abs(ext[1] - lib.asset("runabout").dims_m[2]) < 0.1  # height along y
     m = lib.mesh("runabout")
-    L, W, H = lib.asset("runabout").dims_m
+    L, _W, H = lib.asset("runabout").dims_m
     assert abs(m.extents[0] - L) < 0.05 * L and abs(m.extents[2] - H) < 0.05 * H  # back to z up
 
 

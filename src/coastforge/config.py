@@ -559,7 +559,7 @@ def validate_config(cfg: Config) -> Config:
             continue
         items = value if isinstance(value, tuple) else (value,)
         for v in items:
-            if isinstance(v, str) or isinstance(v, bool):
+            if isinstance(v, (str, bool)):
                 continue
             each = "" if items is not value else "a list whose every item is "
             if not math.isfinite(v):

@@ -244,7 +244,7 @@ def _glint_mask(lab: np.ndarray, edge: np.ndarray) -> np.ndarray | None:
     h, w = L.shape
     r0 = max(1, int(round(CENTRE_FRAC * min(h, w))))
     cy, cx = (h - 1) // 2, (w - 1) // 2
-    n, lbl = cv2.connectedComponents(glint, connectivity=8)
+    _n, lbl = cv2.connectedComponents(glint, connectivity=8)
     centre = np.unique(lbl[max(0, cy - r0 + 1): cy + r0 + 1, max(0, cx - r0 + 1): cx + r0 + 1])
     return (lbl > 0) & ~np.isin(lbl, centre[centre > 0])
 

@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import contextlib
 
 DEFAULT_SIZES = (1024, 4096, 8192, 16384)
 GSD_M = 0.2
@@ -69,7 +70,7 @@ def write_mirrored_geotiff(path: Path, base: np.ndarray, size_px: int, band_rows
     import rasterio
     from affine import Affine
 
-    bh, bw = base.shape[:2]
+    _bh, _bw = base.shape[:2]
     ext_x = np.concatenate([base, base[:, ::-1]], axis=1)  # one period along x: base + its mirror
     ext = np.concatenate([ext_x, ext_x[::-1]], axis=0)  # and along y
     ph, pw = ext.shape[:2]
@@ -178,10 +179,8 @@ def _json_lines(text: str, key: str) -> list[dict]:
     out = []
     for line in text.splitlines():
         if line.startswith('{"%s"' % key):
-            try:
+            with contextlib.suppress(json.JSONDecodeError):
                 out.append(json.loads(line))
-            except json.JSONDecodeError:
-                pass
     return out
 
 

@@ -510,7 +510,7 @@ class ClassicalDetector:
                 continue
             rr, cc = np.nonzero(m)
             pts = np.stack([cc + sl[1].start, rr + sl[0].start], 1).astype(np.float32)
-            (cx, cy), (a, b), ang = cv2.minAreaRect(pts)
+            (cx, cy), (a, b), _ang = cv2.minAreaRect(pts)
             a, b = a + 1.0, b + 1.0
             length, width = max(a, b), min(a, b)
             # at satellite scale only large vessels are visible: the upper limit follows the pixel size
@@ -544,7 +544,7 @@ class ClassicalDetector:
     def _axis_yaw(pts: np.ndarray, c) -> float:
         rel = pts - np.asarray(c, dtype=np.float32)
         cov = rel.T @ rel / max(len(rel), 1)
-        w, v = np.linalg.eigh(cov)
+        _w, v = np.linalg.eigh(cov)
         e = v[:, 1]
         return float(wrap_half_deg(yaw_from_direction_px(e[0], e[1])))
 
@@ -643,7 +643,7 @@ class ClassicalDetector:
             cand = _fill_holes(cand.astype(np.uint8), (1.2 / gsd) ** 2)  # dark windows in a white body
             cand = cv2.morphologyEx(cand, cv2.MORPH_OPEN, se)
             cand_all |= cand.astype(bool)
-            n, lbl, st, cen = cv2.connectedComponentsWithStats(cand, connectivity=8)
+            n, lbl, st, _cen = cv2.connectedComponentsWithStats(cand, connectivity=8)
             for k in range(1, n):
                 x, y, ww_, hh_, area = st[k]
                 if area * gsd * gsd < 2.5 or area * gsd * gsd > 400.0:  # up to a row of ~30 cars

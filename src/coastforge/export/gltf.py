@@ -38,7 +38,7 @@ def yaw_quaternion(yaw_deg: float) -> list[float]:
 
 
 def yaw_from_quaternion(q) -> float:
-    x, y, z, w = q
+    _x, y, _z, w = q
     return math.degrees(2.0 * math.atan2(y, w))
 
 

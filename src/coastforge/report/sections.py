@@ -349,7 +349,7 @@ def vegetation_section(scene: Scene) -> str:
     ri = np.clip(np.asarray(row, float).astype(int), 0, grid.height_px - 1)
     cls = scene.classes[ri, ci]
     area = np.bincount(scene.classes.ravel(), minlength=N_CLASSES) * grid.gsd_m ** 2
-    cats = sorted(set(str(a) for a in v.category))
+    cats = sorted({str(a) for a in v.category})
     dens = {}
     rows = []
     for c in range(N_CLASSES):

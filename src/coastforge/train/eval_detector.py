@@ -31,7 +31,7 @@ def _row(s) -> dict:
 
     return {"n_truth": s.n_truth, "n_pred": s.n_pred, "recall": r(s.recall), "precision": r(s.precision),
             "orient_rmse_deg": r(s.orient_rmse), "heading_acc": r(s.heading_acc),
-            **{k: v for k, v in s.extra.items()}}
+            **s.extra}
 
 
 def evaluate(backend: str, weights: str | None, data: Path | None, work: Path) -> dict:

@@ -13,6 +13,7 @@ from ...errors import LibraryError
 from .build import build_library, config_dict
 from .store import LIBRARY_JSON, Library, make_embedder, sha
 from .views import view_settings
+import contextlib
 
 
 def cache_root() -> Path:
@@ -58,10 +59,8 @@ def default_library(config: LibraryConfig = LibraryConfig()) -> Library:
                 Library.load(root)
             except LibraryError:  # the corrupted cache we could not load: replace it
                 shutil.rmtree(root, ignore_errors=True)
-        try:
+        with contextlib.suppress(OSError):
             os.rename(tmp, root)
-        except OSError:
-            pass
         shutil.rmtree(tmp, ignore_errors=True)
         lib = Library.load(root)
     _DEFAULT[key] = lib

@@ -106,7 +106,7 @@ class Library:
             emb = doc["embedder"]
             assets, row_asset = [], []
             for i, a in enumerate(doc["assets"]):
-                start, count = a["index_rows"]
+                _start, count = a["index_rows"]
                 row_asset.extend([i] * int(count))
                 assets.append(_record_from_json(root, a))
             idx_info = doc["index"]
