@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import os
 from types import SimpleNamespace
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -16,7 +18,6 @@ from coastforge.detection.yolo import (YoloDetector, box_from_xywhr, results_to_
 from coastforge.errors import BackendUnavailable, InputError
 from coastforge.frames import wrap_half_deg
 from coastforge.types import GeoImage, Grid
-import itertools
 
 
 def _image(w=300, h=200):
@@ -54,7 +55,7 @@ class _Obb:
 class _StubModel:
     """Stands in for ultralytics.YOLO: same ``names`` and ``predict(...) -> [Results with .obb]``."""
 
-    names = {0: "plane", 1: "ship", 2: "small vehicle", 3: "harbor"}
+    names: ClassVar[dict[int, str]] = {0: "plane", 1: "ship", 2: "small vehicle", 3: "harbor"}
 
     def __init__(self):
         self.calls = []
@@ -97,7 +98,7 @@ def test_yolo_sliced_with_stub_model_and_nms():
 def test_yolo_needs_local_weights(tmp_path):
     with pytest.raises(BackendUnavailable, match="--weights"):
         YoloDetector(DetectConfig())
-    with pytest.raises(InputError, match="nope.pt"):
+    with pytest.raises(InputError, match=r"nope.pt"):
         YoloDetector(DetectConfig(), weights=tmp_path / "nope.pt")
 
 
@@ -183,7 +184,7 @@ def test_onnx_ultralytics_raw_layout(tmp_path):
 def test_onnx_errors(tmp_path):
     with pytest.raises(BackendUnavailable, match="--weights"):
         OnnxDetector(DetectConfig())
-    with pytest.raises(InputError, match="missing.onnx"):
+    with pytest.raises(InputError, match=r"missing.onnx"):
         OnnxDetector(DetectConfig(), weights=tmp_path / "missing.onnx")
     bad = tmp_path / "bad.onnx"
     bad.write_bytes(b"not a model")

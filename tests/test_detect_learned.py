@@ -114,7 +114,7 @@ def test_missing_and_corrupt_weights(tmp_path):
         LearnedDetector(DetectConfig(), weights=tmp_path / "nope.onnx")
     bad = tmp_path / "bad.onnx"
     bad.write_bytes(b"this is not an onnx model")
-    with pytest.raises(InputError, match="bad.onnx"):
+    with pytest.raises(InputError, match=r"bad.onnx"):
         LearnedDetector(DetectConfig(), weights=bad)
 
 

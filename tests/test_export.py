@@ -764,7 +764,7 @@ def test_default_resolver_library_then_kit_then_error():
     assert r.ue_path("lib_x") == "/Game/Lib/SM_X" and r.category("lib_x") == "boat"
     assert r.mesh_path("lib_x") == Path("/lib/x.glb")
     assert r.mesh("lib_x").extents == pytest.approx(DIMS["kit_boat"])
-    with pytest.raises(LibraryError, match="no_such_asset.*--library"):
+    with pytest.raises(LibraryError, match=r"no_such_asset.*--library"):
         r.mesh("no_such_asset")
     try:
         from coastforge.assets.kit import kit_assets

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from typing import ClassVar
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -413,8 +414,8 @@ def test_export_summaries_print_plain_paths(tmp_path, monkeypatch):
 
     class R:
         scene_path = tmp_path / "o" / "scene.json"
-        n_objects = {"boat": 1}
-        timings_s = {"total": 1.0}
+        n_objects: ClassVar[dict[str, int]] = {"boat": 1}
+        timings_s: ClassVar[dict[str, float]] = {"total": 1.0}
         exports = written
         report_path = None
         warnings = ()

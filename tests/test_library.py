@@ -98,7 +98,7 @@ def test_quaternius_models_normalised_upright_forward(shared_data, tmp_path):
     lib = build_library(_manifest(src, entries), tmp_path / "lib", config=SMALL, workers=1)
     assert not lib.build_report.skipped
     assert len(lib.assets) == len(entries)
-    for stem, (aid, cat, key, val) in QUAT.items():
+    for aid, _cat, key, val in QUAT.values():
         a = lib.asset(aid)
         got = a.dims_m[2] if key == "height_m" else max(a.dims_m[:2])
         assert abs(got - val) <= 0.05 * val, (aid, a.dims_m, val)
@@ -540,7 +540,7 @@ def test_from_thumbnails(tmp_path):
     assert lib.mesh("SM_Thing").extents == pytest.approx(lib.asset("SM_Thing").dims_m, rel=1e-6)
     img = read_png(thumbs / "SM_Thing" / "l0_ground.png")
     assert lib.query(img, 0.1, k=1)[0][0] == "SM_Thing"
-    with pytest.raises(LibraryError, match="no thumbnails.json"):
+    with pytest.raises(LibraryError, match=r"no thumbnails.json"):
         build_library(None, tmp_path / "lib2", from_thumbnails=tmp_path, config=SMALL)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import cv2
@@ -16,7 +17,6 @@ from coastforge.types import GeoImage, Grid
 pytest.importorskip("onnxruntime")
 
 from coastforge.segmentation import learned
-import itertools
 
 
 def _scene(n: int = 256, seed: int = 0) -> np.ndarray:

@@ -148,7 +148,7 @@ def test_cross_sections_cross_the_shore_once_per_type():
 def test_bad_inputs_name_the_value():
     with pytest.raises(ConfigError, match="max_depth_m"):
         DefaultTerrain(TerrainConfig(max_depth_m=-1.0))
-    with pytest.raises(InputError, match="class id|id 9"):
+    with pytest.raises(InputError, match=r"class id|id 9"):
         estimate_terrain(ClassMap(np.full((8, 8), 9, np.uint8), Grid(8, 8, 1.0)), TerrainConfig())
     with pytest.raises(InputError, match="shape"):
         estimate_terrain(ClassMap(np.zeros((8, 9), np.uint8), Grid(8, 8, 1.0)), TerrainConfig())

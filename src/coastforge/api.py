@@ -41,7 +41,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .scene import Scene
 
 PathLike = Union[str, "os.PathLike[str]"]
-Settings = Union[Mapping[str, Any], Iterable[str]]  # {"terrain.max_depth_m": 12} or ["terrain.max_depth_m=12"]
+Settings = Mapping[str, Any] | Iterable[str]  # {"terrain.max_depth_m": 12} or ["terrain.max_depth_m=12"]
 
 __all__ = ["ExportResult", "evaluate_scenes", "export_scene", "generate", "make_config"]
 

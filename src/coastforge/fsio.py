@@ -387,10 +387,8 @@ class FolderLock:
     def release(self) -> None:
         if self.fd is None:
             return
-        try:
+        with contextlib.suppress(OSError):
             self.path.unlink(missing_ok=True)  # while still holding it: see acquire's inode check
-        except OSError:
-            pass
         os.close(self.fd)
         self.fd = None
 

@@ -16,6 +16,7 @@ scale and centre offset) is recorded.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 
 import math
@@ -172,10 +173,9 @@ def shape_matcher(library) -> ShapeMatcher:
     sm = getattr(library, "_shape_matcher", None)
     if sm is None or sm.library is not library:
         sm = ShapeMatcher(library)
-        try:
+        # a library-like object that takes no attributes: no cache across calls
+        with contextlib.suppress(AttributeError):
             library._shape_matcher = sm
-        except AttributeError:  # a library-like object that takes no attributes: no cache across calls
-            pass
     return sm
 
 

@@ -214,7 +214,7 @@ def retrieval(lib, queries, seeds: Sequence[int] | None = None) -> dict:
     per_seed = defaultdict(lambda: [0, 0, 0])
     confusions = defaultdict(int)
     ok_asset = ok_cat = 0
-    for i, ((_img, gsd, aid, cat), h) in enumerate(zip(queries, hits)):
+    for i, ((_img, _gsd, aid, cat), h) in enumerate(zip(queries, hits)):
         top = h[0][0] if h else None
         tcat = lib.asset(top).category if top else None
         ok_asset += top == aid

@@ -100,9 +100,12 @@ def _find_objects(labels: np.ndarray):
         return []
     lv = labels[rr, cc]
     n = int(lv.max()) + 1
-    r0 = np.full(n, 1 << 30); c0 = np.full(n, 1 << 30); r1 = np.full(n, -1); c1 = np.full(n, -1)
-    np.minimum.at(r0, lv, rr); np.minimum.at(c0, lv, cc)
-    np.maximum.at(r1, lv, rr); np.maximum.at(c1, lv, cc)
+    r0, c0 = np.full(n, 1 << 30), np.full(n, 1 << 30)
+    r1, c1 = np.full(n, -1), np.full(n, -1)
+    np.minimum.at(r0, lv, rr)
+    np.minimum.at(c0, lv, cc)
+    np.maximum.at(r1, lv, rr)
+    np.maximum.at(c1, lv, cc)
     return [(k, (slice(int(r0[k]), int(r1[k]) + 1), slice(int(c0[k]), int(c1[k]) + 1)))
             for k in range(1, n) if r1[k] >= 0]
 

@@ -9,6 +9,7 @@ scene's provenance; side work runs beside the chain (``runtime``).
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -238,10 +239,9 @@ def _report_terrain(ids: np.ndarray, z_m: np.ndarray, grid, seed: int):
 def _load_meshes(library, asset_ids) -> None:
     """Load these assets' meshes into the library's cache (the report's render and 3D preview use them)."""
     for aid in dict.fromkeys(asset_ids):
-        try:
+        # any error: the report falls back on its own for a mesh that will not load
+        with contextlib.suppress(Exception):
             library.mesh(aid)
-        except Exception:  # noqa: BLE001 - the report falls back on its own for a mesh that will not load
-            pass
 
 
 # what the report waits for (``report.build_report``'s ``wait(part)``): the background job making it

@@ -9,6 +9,7 @@ for object checks agree.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -19,7 +20,6 @@ from shapely.ops import unary_union
 
 from .. import frames
 from ..classes import ASPHALT, SIDEWALK
-import itertools
 
 # ---------------------------------------------------------------- asset dimensions
 

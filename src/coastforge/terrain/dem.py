@@ -118,7 +118,7 @@ def scene_georeference(grid: Grid, placement: Placement | None = None):
     try:
         crs = CRS.from_user_input(grid.crs)
     except CRSError as exc:
-        raise InputError(f"the scene's crs {grid.crs!r} is not readable ({exc}); give --dem-crs/--dem-origin")
+        raise InputError(f"the scene's crs {grid.crs!r} is not readable ({exc}); give --dem-crs/--dem-origin") from exc
     return crs, Affine(*grid.transform)
 
 

@@ -9,6 +9,7 @@ writes per level.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import time
@@ -18,7 +19,6 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..rng import stage_rng
-import itertools
 
 RESERVED_SEEDS = range(0, 100)  # validation levels (benchmarks use seeds 0, 1, 2)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
@@ -13,7 +14,6 @@ from ...errors import LibraryError
 from .build import build_library, config_dict
 from .store import LIBRARY_JSON, Library, make_embedder, sha
 from .views import view_settings
-import contextlib
 
 
 def cache_root() -> Path:
