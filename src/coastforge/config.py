@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import operator
+import os
 import sys
 import typing
 from collections.abc import Iterable, Mapping
@@ -324,7 +325,7 @@ def _apply(cls: type, base: Any, data: dict, prefix: str) -> Any:
         if k not in names:
             raise _unknown_key(key, names)
         tp = hints[k]
-        if dataclasses.is_dataclass(tp):
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             changes[k] = _apply(tp, getattr(base, k), v, key + ".")
         else:
             changes[k] = _coerce(v, tp, key)
@@ -379,7 +380,7 @@ def parse_set(item: str) -> dict:
     return out
 
 
-def load_config(preset: str = "default", path: str | Path | None = None, sets: list[str] | tuple[str, ...] = (),
+def load_config(preset: str = "default", path: str | os.PathLike[str] | None = None, sets: list[str] | tuple[str, ...] = (),
                 seed: int | None = None) -> Config:
     """Build the config from a named preset, an optional TOML file, ``--set`` items and ``--seed``."""
     cfg = Config()
@@ -593,7 +594,7 @@ def validate_config(cfg: Config) -> Config:
                                   f"--set {key}=... or in the config file")
     for key, stage in _BACKEND_STAGES.items():
         kind = "export format" if stage == "export" else f"{stage} backend"
-        valid = [s.name for s in registry.specs(stage)]
+        valid = tuple(s.name for s in registry.specs(stage))
         for v in flat[key] if isinstance(flat[key], tuple) else (flat[key],):
             if v not in valid:
                 raise ConfigError(f"config key {key} = {v!r} is not a known {kind}; valid: "

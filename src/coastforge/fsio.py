@@ -463,6 +463,13 @@ def _swap_in(staging: Path, out: Path) -> None:
         os.rename(staging, out)
 
 
+def _add_note(exc: BaseException, note: str) -> None:
+    """``exc.add_note(note)`` where Python has it (3.11+); on 3.10 the exception goes on without the note."""
+    add = getattr(exc, "add_note", None)
+    if add is not None:
+        add(note)
+
+
 @contextlib.contextmanager
 def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bool = False, command: str = "",
                   notes: list[str] | None = None, inputs=()) -> Iterator[Path]:
@@ -523,10 +530,10 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
             if staging.exists() and not _written_into(staging, out):  # failed before writing: nothing to keep
                 shutil.rmtree(staging, ignore_errors=True)
                 if isinstance(exc, KeyboardInterrupt):  # (an error's own message says enough)
-                    exc.add_note(f"{out} is unchanged")
+                    _add_note(exc, f"{out} is unchanged")
             elif staging.exists():
-                exc.add_note(f"{out} is unchanged; the partial output is in {staging} (the next run into {out} "
-                             "removes it)")
+                _add_note(exc, f"{out} is unchanged; the partial output is in {staging} (the next run into {out} "
+                          "removes it)")
             raise
         atomic_write_text(staging / MARKER, json.dumps({"tool": "coastforge", "command": command,
                                                         "completed": time.strftime("%Y-%m-%d %H:%M:%S"),

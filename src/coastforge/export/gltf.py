@@ -99,10 +99,11 @@ def build_glb(scene, assets, config) -> bytes:
     veg_ids = [str(a) for a in veg.asset_id] if veg is not None else []
     asset_ids = list(dict.fromkeys([o.asset_id for o in scene.objects] + veg_ids))
     names = unique_names(asset_ids)
-    amat = vertex_colour_material(b) if asset_ids else None
     mesh_of: dict[str, int] = {}
-    for aid in asset_ids:
-        mesh_of[aid] = add_asset_mesh(b, names[aid], assets.mesh(aid), amat)
+    if asset_ids:
+        amat = vertex_colour_material(b)
+        for aid in asset_ids:
+            mesh_of[aid] = add_asset_mesh(b, names[aid], assets.mesh(aid), amat)
 
     # labels from the scene's label table (instances.json): the same ids and HoloOcean labels as every export
     objs = b.node({"name": "objects"}, root)

@@ -13,7 +13,11 @@ import threading
 import time
 from contextlib import contextmanager
 from enum import Enum
+from typing import TYPE_CHECKING, Any
 from collections.abc import Callable, Iterable
+
+if TYPE_CHECKING:
+    from concurrent.futures import Future
 
 # images at least this big (pixels) get a side process; below, its start-up costs more than it saves
 SIDE_PROCESS_MIN_PX = 1_500_000
@@ -77,7 +81,7 @@ class Background:
         # the chain's work (and the side process's): they fill its idle moments instead of slowing it
         self._low = ThreadPoolExecutor(max_workers=low_workers, thread_name_prefix="coastforge-bg-low",
                                        initializer=lower_thread_priority)
-        self._jobs: dict[Job, object] = {}
+        self._jobs: dict[Job, Future[Any]] = {}
         self._t: dict[str, dict] = {}
 
     def __enter__(self):

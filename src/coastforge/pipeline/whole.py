@@ -65,8 +65,10 @@ class WholeImage:
 
             opts["classical_dets"] = side.submit(classical_part, self.image, class_map, config.detect, config.seed)
         side_queued()
-        return detect(self.image, config.detect, class_map=class_map, seed=config.seed, return_class_map=True,
-                      **opts)
+        dets, cm, notes = detect(self.image, config.detect, class_map=class_map, seed=config.seed,
+                                 return_class_map=True, **opts)
+        assert cm is not None  # a class map in, a (reconciled) class map out
+        return dets, cm, notes
 
     def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
                       config: Config) -> tuple[ClassMap, list[Detection], dict]:
