@@ -269,9 +269,7 @@ class Library:
     # most evidence, sum over its assets of exp((cosine - best) / T) (the category's posterior when every
     # asset is a priori as likely and exp(cosine / T) is its likelihood), not the category of the single
     # best asset, which a lone look-alike of another category can take. 0 turns it off. T tuned on the
-    # retrieval benchmark (python -m coastforge.bench.library, seeds 0-2; 3-4 held out), with embedder v5:
-    # category misses of rendered queries 67 -> 62 of 1980 (seeds 0-4; 0 and 1 lose 2 each, 2-4 gain), of
-    # crops of the synthetic scenes 259 -> 208 of 742 (every seed gains). T is in units of the default
+    # retrieval benchmark, seeds 0-2, 3-4 held out (figures: docs/benchmarks.md). T is in units of the default
     # embedder's cosine; libraries of other embedders keep the plain ranking until T is calibrated for them.
     CATEGORY_VOTE_T = 0.03
     CATEGORY_VOTE_EMBEDDERS = ("default",)
