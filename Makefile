@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 # Tests run the optional backends too (their tests build small random models locally): torch comes from the
-# pinned wheels already on these machines, see pyproject.toml.
+# pinned wheels already on these machines, see pyproject.toml. The dev extra brings the pinned ruff and mypy.
 TEST_EXTRAS ?= dev,yolo,dinov3,gemini,dask
 DEMO_OUT ?= out/demo
 
@@ -27,7 +27,10 @@ venv: $(VENV)/.installed-core
 demo: $(VENV)/.installed-core
 	$(PY) -m coastforge.demo --out $(DEMO_OUT)
 
+# lint (ruff, the rules in pyproject.toml) and types (mypy on the core modules) first: either failing fails the target
 test: $(VENV)/.installed-test
+	$(PY) -m ruff check src tests
+	$(PY) -m mypy
 	./scripts/install-test-tools.sh
 	$(PY) -m pytest -q -n 2 --dist loadfile
 

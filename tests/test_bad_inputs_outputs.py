@@ -267,7 +267,6 @@ def test_segment_is_all_or_nothing(images, tmp_path, monkeypatch):
 def test_library_build_never_drops_assets_without_overwrite(tmp_path):
     import trimesh
 
-    from coastforge.config import LibraryConfig
 
     src = tmp_path / "src"
     src.mkdir()
@@ -382,8 +381,7 @@ def test_a_library_without_buoys_or_piers_falls_back_to_the_kit(images, tmp_path
 
 def test_output_folder_removes_a_staging_folder_with_nothing_written(tmp_path):
     out = tmp_path / "A"
-    with pytest.raises(ValueError):
-        with output_folder(out):
-            raise ValueError("checked input was bad")
+    with pytest.raises(ValueError), output_folder(out):
+        raise ValueError("checked input was bad")
     assert not out.exists() and _siblings(out) == []
     np.testing.assert_equal(sorted(p.name for p in tmp_path.iterdir()), [])

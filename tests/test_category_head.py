@@ -59,7 +59,7 @@ def test_missing_or_wrong_head_files(tmp_path):
         CategoryHead(tmp_path / "none.onnx")
     (tmp_path / "h.onnx").write_bytes(b"not onnx")
     (tmp_path / "h.json").write_text(json.dumps({"format": "something else"}))
-    with pytest.raises(InputError, match="is not a coastforge.category_head"):
+    with pytest.raises(InputError, match=r"is not a coastforge.category_head"):
         CategoryHead(tmp_path / "h.onnx")
 
 

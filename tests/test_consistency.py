@@ -31,7 +31,7 @@ def test_a_marina_read_as_pavement_keeps_its_boats_and_gets_its_water():
     assert [d.category for d in rec.dets] == ["boat"] * 8
     water = rec.class_map.ids == WATER
     assert all(water[int(d.cy_px), int(d.cx_px)] for d in boats)
-    gap = (int(200), int(100 + 1.75 / GSD))  # between the first two hulls
+    gap = (200, int(100 + 1.75 / GSD))  # between the first two hulls
     assert water[gap]
     assert water[:, 450:].sum() == 0 and water[:100].sum() == 0  # nowhere else
     assert rec.notes["boat_clusters_made_water"] == 1

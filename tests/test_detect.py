@@ -132,7 +132,7 @@ def test_silhouette_sign_points_to_the_taper():
 def test_rectangle_heading_stays_unknown():
     m = np.zeros((100, 100), bool)
     m[40:60, 20:80] = True
-    s, conf = silhouette_sign(m, (0, 0), Detection("boat", 1, 50, 50, 60, 20, 0.0))
+    _s, conf = silhouette_sign(m, (0, 0), Detection("boat", 1, 50, 50, 60, 20, 0.0))
     assert conf < 0.62
 
 

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import os
 from types import SimpleNamespace
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -27,7 +29,7 @@ def test_slice_windows_cover_with_overlap():
     wins = slice_windows(2500, 1000, 1024, 128)
     cols = sorted({w[0] for w in wins})
     assert cols[0] == 0 and wins[-1][2] == 2500 and all(c1 - c0 <= 1024 for c0, _r0, c1, _r1 in wins)
-    assert all(b - a <= 1024 - 128 for a, b in zip(cols, cols[1:]))
+    assert all(b - a <= 1024 - 128 for a, b in itertools.pairwise(cols))
     assert slice_windows(500, 400, 1024, 128) == [(0, 0, 500, 400)]
     with pytest.raises(InputError, match="slice_px"):
         slice_windows(100, 100, 64, 64)
@@ -35,7 +37,7 @@ def test_slice_windows_cover_with_overlap():
 
 def test_box_from_xywhr_long_side_is_length():
     # ultralytics: side w along image direction (cos r, sin r), rows down
-    cx, cy, length, width, yaw = box_from_xywhr(10, 20, 40, 10, np.deg2rad(30))
+    _cx, _cy, length, width, yaw = box_from_xywhr(10, 20, 40, 10, np.deg2rad(30))
     assert (length, width) == (40, 10) and yaw == pytest.approx(-30.0)  # 30 deg clockwise on screen
     _c, _r, length, width, yaw = box_from_xywhr(10, 20, 10, 40, np.deg2rad(30))
     assert (length, width) == (40, 10) and abs(wrap_half_deg(yaw - 60.0)) < 1e-9
@@ -53,7 +55,7 @@ class _Obb:
 class _StubModel:
     """Stands in for ultralytics.YOLO: same ``names`` and ``predict(...) -> [Results with .obb]``."""
 
-    names = {0: "plane", 1: "ship", 2: "small vehicle", 3: "harbor"}
+    names: ClassVar[dict[int, str]] = {0: "plane", 1: "ship", 2: "small vehicle", 3: "harbor"}
 
     def __init__(self):
         self.calls = []
@@ -96,7 +98,7 @@ def test_yolo_sliced_with_stub_model_and_nms():
 def test_yolo_needs_local_weights(tmp_path):
     with pytest.raises(BackendUnavailable, match="--weights"):
         YoloDetector(DetectConfig())
-    with pytest.raises(InputError, match="nope.pt"):
+    with pytest.raises(InputError, match=r"nope.pt"):
         YoloDetector(DetectConfig(), weights=tmp_path / "nope.pt")
 
 
@@ -182,7 +184,7 @@ def test_onnx_ultralytics_raw_layout(tmp_path):
 def test_onnx_errors(tmp_path):
     with pytest.raises(BackendUnavailable, match="--weights"):
         OnnxDetector(DetectConfig())
-    with pytest.raises(InputError, match="missing.onnx"):
+    with pytest.raises(InputError, match=r"missing.onnx"):
         OnnxDetector(DetectConfig(), weights=tmp_path / "missing.onnx")
     bad = tmp_path / "bad.onnx"
     bad.write_bytes(b"not a model")

@@ -104,7 +104,6 @@ def test_union_boats_must_be_afloat_in_the_class_map():
     from coastforge.detection.hybrid import _afloat
     from coastforge.types import ClassMap, Detection, Grid
 
-    grid = Grid(200, 100, 0.2)
     ids = np.full((50, 100), WATER, np.uint8)  # the class map on a coarser grid than the image
     ids[:, 50:] = ROCKS  # a riprap bank on the right half
     cm = ClassMap(ids, Grid(100, 50, 0.4))

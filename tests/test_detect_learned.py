@@ -14,7 +14,7 @@ from coastforge.types import GeoImage, Grid
 
 pytest.importorskip("onnxruntime")
 
-from coastforge.detection.learned import LearnedDetector, decode, default_weights  # noqa: E402
+from coastforge.detection.learned import LearnedDetector, decode, default_weights
 
 
 def _maps(n=16, c=3):
@@ -103,7 +103,7 @@ def test_training_targets_decode_back():
     peaks = np.where(heat >= pooled, heat, 0)
     rows = decode(peaks, reg, 0.99)
     assert len(rows) == 1 and wmask.sum() >= 1 and amask.sum() == wmask.sum() == smask.sum()
-    c, _s, cx, cy, L, W, yaw, _conf = rows[0]
+    _c, _s, cx, cy, L, W, yaw, _conf = rows[0]
     assert (cx, cy) == pytest.approx(tuple(moved[0, 1:3]), abs=1e-3)
     assert (L, W) == pytest.approx((36.0 * 1.1, 11.0 * 1.1), rel=1e-3)
     assert yaw == pytest.approx(moved[0, 5], abs=1e-3)
@@ -114,7 +114,7 @@ def test_missing_and_corrupt_weights(tmp_path):
         LearnedDetector(DetectConfig(), weights=tmp_path / "nope.onnx")
     bad = tmp_path / "bad.onnx"
     bad.write_bytes(b"this is not an onnx model")
-    with pytest.raises(InputError, match="bad.onnx"):
+    with pytest.raises(InputError, match=r"bad.onnx"):
         LearnedDetector(DetectConfig(), weights=bad)
 
 

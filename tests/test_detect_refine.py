@@ -25,7 +25,7 @@ def _scene(objects, size=160, ground=(60, 110, 120), shadow=(2.5, 2.0)):
     big = np.zeros((size * SS, size * SS, 3), np.uint8)
     big[:] = ground
     dark = tuple(int(c * 0.45) for c in ground)
-    for cx, cy, length, width, yaw, colour in objects:
+    for cx, cy, length, width, yaw, _colour in objects:
         sh = box_corners_px(cx + shadow[0], cy + shadow[1], length, width, yaw)
         cv2.fillPoly(big, [np.round(sh * SS).astype(np.int32)], dark)
     for cx, cy, length, width, yaw, colour in objects:

@@ -43,7 +43,7 @@ def test_missing_or_wrong_weights(tmp_path, tiny_dinov3):
 
     with pytest.raises(BackendUnavailable, match="needs --weights"):
         Dinov3Embedder()
-    with pytest.raises(BackendUnavailable, match="no config.json"):
+    with pytest.raises(BackendUnavailable, match=r"no config.json"):
         Dinov3Embedder(weights=tmp_path)
     (tmp_path / "config.json").write_text(json.dumps({"model_type": "vit"}))
     with pytest.raises(InputError, match="dinov3_vit"):

@@ -244,7 +244,7 @@ def test_build_level_against_recording_unreal(out, scene, capsys):
     assert rec.named("LevelEditorSubsystem.new_level_from_template")[0][0][1:] == (
         "/Game/Coastforge/Maps/Test_Harbor", CFG.template_level)
     # landscape: transform and the heights that arrived through the RGBA8 render target
-    land = [a for a in rec.world_actors if isinstance(a, unreal_stub.Landscape)][0]
+    land = next(a for a in rec.world_actors if isinstance(a, unreal_stub.Landscape))
     ls = spec["landscape"]
     assert (land.location.x, land.location.y, land.location.z) == pytest.approx(tuple(ls["location"]))
     assert (land.scale.x, land.scale.y, land.scale.z) == pytest.approx(tuple(ls["scale"]))
@@ -476,7 +476,7 @@ def test_gltf_passes_khronos_validator(out):
 
 
 def test_gltf_round_trip_y_up(out, scene):
-    doc, binary = read_glb((out / "gltf" / "Test_Harbor.glb").read_bytes())
+    doc, _binary = read_glb((out / "gltf" / "Test_Harbor.glb").read_bytes())
     nodes = {n["name"]: n for n in doc["nodes"]}
     for o in scene.objects:
         n = nodes[o.id]
@@ -698,7 +698,7 @@ def test_cli_export_with_starter_kit(tmp_path):
         from coastforge.assets.kit import kit_assets
 
         kit = kit_assets()
-    except Exception as exc:  # the kit is built by another module; skip until it is installed
+    except Exception as exc:  # noqa: BLE001 - the kit is built by another module; skip until it is installed
         pytest.skip(f"starter kit not available: {exc}")
     from coastforge.scene import save_scene
 
@@ -764,13 +764,13 @@ def test_default_resolver_library_then_kit_then_error():
     assert r.ue_path("lib_x") == "/Game/Lib/SM_X" and r.category("lib_x") == "boat"
     assert r.mesh_path("lib_x") == Path("/lib/x.glb")
     assert r.mesh("lib_x").extents == pytest.approx(DIMS["kit_boat"])
-    with pytest.raises(LibraryError, match="no_such_asset.*--library"):
+    with pytest.raises(LibraryError, match=r"no_such_asset.*--library"):
         r.mesh("no_such_asset")
     try:
         from coastforge.assets.kit import kit_assets
 
         kit_id = kit_assets()[0].id
-    except Exception as exc:  # the kit is another module's; skip until installed
+    except Exception as exc:  # noqa: BLE001 - the kit is another module's; skip until installed
         pytest.skip(f"starter kit not available: {exc}")
     assert r.ue_path(kit_id) is None and r.mesh_path(kit_id).suffix == ".glb"
     assert len(r.mesh(kit_id).faces) > 0

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from typing import ClassVar
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -109,7 +110,7 @@ def _table(out: Path) -> dict:
 
 
 def test_generate_writes_one_label_table(generated):
-    out, res = generated
+    out, _res = generated
     scene = load_scene(out)
     t = _table(out)
     assert [r["id"] for r in t["objects"]] == [o.id for o in scene.objects]
@@ -243,7 +244,7 @@ def load_like_holoocean(scenario: dict, world_entry: dict) -> list[str]:
     sensor faster than ``ticks_per_sec`` and rounds (with a printed message) a rate that does not divide it.
     Returns those rounding messages."""
     package_config = {"worlds": [world_entry]}
-    world = [w for w in package_config["worlds"] if w["name"] == scenario["world"]][0]  # IndexError: not listed
+    world = next(w for w in package_config["worlds"] if w["name"] == scenario["world"])  # StopIteration: not listed
     _ = world["pre_start_steps"]
     assert "env_min" in scenario or "env_min" in world
     ticks = scenario.get("ticks_per_sec", 30)
@@ -413,8 +414,8 @@ def test_export_summaries_print_plain_paths(tmp_path, monkeypatch):
 
     class R:
         scene_path = tmp_path / "o" / "scene.json"
-        n_objects = {"boat": 1}
-        timings_s = {"total": 1.0}
+        n_objects: ClassVar[dict[str, int]] = {"boat": 1}
+        timings_s: ClassVar[dict[str, float]] = {"total": 1.0}
         exports = written
         report_path = None
         warnings = ()

@@ -51,7 +51,7 @@ def test_library_stores_the_footprint_the_matcher_would_rasterise(car_lib):
     try:
         view = car_lib.views_on("car", "ground")[0]
         assert np.array_equal(_silhouette(car_lib, "car", n, a.view_gsd_m, view), stored)
-        views, gsd, sil = ShapeMatcher(car_lib)._asset_views("car", "ground")
+        _views, gsd, sil = ShapeMatcher(car_lib)._asset_views("car", "ground")
         assert sil.any() and gsd == a.view_gsd_m
     finally:
         del car_lib.mesh

@@ -1,6 +1,5 @@
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import pytest
@@ -52,7 +51,7 @@ def test_geotiff_projected(tmp_path):
 def test_geotiff_agreeing_gsd_ok_disagreeing_fails(tmp_path):
     p = geotiff(tmp_path / "g.tif", "EPSG:32633", from_origin(500000, 4000000, 0.25, 0.25))
     assert read_image(p, gsd_m=0.25).grid.gsd_m == 0.25
-    with pytest.raises(InputError, match="--gsd gives 0.5 m/px but the GeoTIFF georeference gives 0.25"):
+    with pytest.raises(InputError, match=r"--gsd gives 0.5 m/px but the GeoTIFF georeference gives 0.25"):
         read_image(p, gsd_m=0.5)
 
 

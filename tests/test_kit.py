@@ -279,5 +279,5 @@ def test_bad_manifests_raise_library_error(tmp_path):
     with pytest.raises(LibraryError, match="spaceship"):
         kit.read_manifest(p)
     (tmp_path / "x.glb").write_bytes(b"not a glb at all")
-    with pytest.raises(LibraryError, match="x.glb"):
+    with pytest.raises(LibraryError, match=r"x.glb"):
         kit.read_glb(tmp_path / "x.glb")

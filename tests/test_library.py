@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from pathlib import Path
 
@@ -99,7 +98,7 @@ def test_quaternius_models_normalised_upright_forward(shared_data, tmp_path):
     lib = build_library(_manifest(src, entries), tmp_path / "lib", config=SMALL, workers=1)
     assert not lib.build_report.skipped
     assert len(lib.assets) == len(entries)
-    for stem, (aid, cat, key, val) in QUAT.items():
+    for aid, _cat, key, val in QUAT.values():
         a = lib.asset(aid)
         got = a.dims_m[2] if key == "height_m" else max(a.dims_m[:2])
         assert abs(got - val) <= 0.05 * val, (aid, a.dims_m, val)
@@ -541,7 +540,7 @@ def test_from_thumbnails(tmp_path):
     assert lib.mesh("SM_Thing").extents == pytest.approx(lib.asset("SM_Thing").dims_m, rel=1e-6)
     img = read_png(thumbs / "SM_Thing" / "l0_ground.png")
     assert lib.query(img, 0.1, k=1)[0][0] == "SM_Thing"
-    with pytest.raises(LibraryError, match="no thumbnails.json"):
+    with pytest.raises(LibraryError, match=r"no thumbnails.json"):
         build_library(None, tmp_path / "lib2", from_thumbnails=tmp_path, config=SMALL)
 
 
@@ -753,7 +752,7 @@ def test_library_glbs_are_gltf_y_up_and_load_back_z_up(tmp_path):
     ext = raw.extents
     assert ext[1] < ext[0] and abs(ext[1] - lib.asset("runabout").dims_m[2]) < 0.1  # height along y
     m = lib.mesh("runabout")
-    L, W, H = lib.asset("runabout").dims_m
+    L, _W, H = lib.asset("runabout").dims_m
     assert abs(m.extents[0] - L) < 0.05 * L and abs(m.extents[2] - H) < 0.05 * H  # back to z up
 
 

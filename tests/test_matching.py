@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -146,7 +145,7 @@ def test_plain_path_and_bad_mode(car_library):
     det = _det(img, 4.6, 1.9, 10.0, known=False, conf=0.0)
     dec = match_detections(img, [det], car_library, MatchConfig(shape=False), seed=0)[0]
     assert dec.asset_id in KINDS and dec.fit_scale is None and dec.candidates[0].shape is None
-    with pytest.raises(LibraryError, match="match.mode"):
+    with pytest.raises(LibraryError, match=r"match.mode"):
         match_detections(img, [det], car_library, MatchConfig(mode="nearest"), seed=0)
     buoy = Detection("buoy", 0.9, 48, 48, 10, 10, 0.0)
     with pytest.raises(LibraryError, match="no buoy asset"):

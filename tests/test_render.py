@@ -167,8 +167,8 @@ def test_mesh_view_centred_and_backgrounds():
 
 def test_random_lighting_varies_and_is_plausible():
     ls = [random_lighting(stage_rng(0, "t", i)) for i in range(20)]
-    assert len({l.sun_azimuth_deg for l in ls}) == 20
-    assert all(10 <= l.sun_elevation_deg <= 90 and 0 <= l.turbidity <= 1 for l in ls)
+    assert len({lt.sun_azimuth_deg for lt in ls}) == 20
+    assert all(10 <= lt.sun_elevation_deg <= 90 and 0 <= lt.turbidity <= 1 for lt in ls)
     cls, h = flat_ground(16)
     render_topdown(cls, h, (8.0, 8.0), [], 0.25, ls[0])
 

@@ -157,7 +157,7 @@ def test_report_shows_the_self_check_and_the_segmentation_confidence(built):
 def test_rebuild_and_errors(built, tmp_path):
     path, _ = built
     d = path.parent
-    with pytest.raises(InputError, match="scene.json"):
+    with pytest.raises(InputError, match=r"scene.json"):
         build_report(tmp_path / "nowhere")
     with pytest.raises(InputError, match="truth"):
         build_report(d, truth=tmp_path / "missing.json")

@@ -259,7 +259,7 @@ def test_gemini_errors(monkeypatch):
         def generate_content(self, model, contents, config=None):
             return _Obj(candidates=[_Obj(content=_Obj(parts=[_Obj(inline_data=None, text="I cannot")]))])
 
-    with pytest.raises(BackendUnavailable, match="no image.*I cannot"):
+    with pytest.raises(BackendUnavailable, match=r"no image.*I cannot"):
         segment(image, SegmentConfig(), backend="gemini", client=TextOnly([]))
 
 

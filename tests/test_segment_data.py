@@ -42,7 +42,7 @@ def test_render_levels_resumes_skips_and_draws_the_same_levels(tmp_path):
     index = json.loads(idx.read_text())
     assert index["gsd_m"] == 0.2
     assert [it["image"] for it in index["items"]] == ["a_100.png", "b_101.png", "b_103.png"]  # 102 skipped
-    for preset, seed, gsd, size in calls:
+    for _preset, _seed, gsd, size in calls:
         assert 0.1 <= gsd <= 0.4 and 60.0 <= size <= 80.0 and size % 2 == 0
     first = list(calls)
     # a second run resumes: nothing already written is rendered again

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import cv2
@@ -15,7 +16,7 @@ from coastforge.types import GeoImage, Grid
 
 pytest.importorskip("onnxruntime")
 
-from coastforge.segmentation import learned  # noqa: E402
+from coastforge.segmentation import learned
 
 
 def _scene(n: int = 256, seed: int = 0) -> np.ndarray:
@@ -33,7 +34,7 @@ def test_tiles_cover_exactly_once():
     for n in (5, 768, 769, 2000, 5001):
         t = learned._tiles(n, 768, 48)
         assert t[0][2] == 0 and t[-1][3] == n
-        assert all(a[3] == b[2] for a, b in zip(t, t[1:]))
+        assert all(a[3] == b[2] for a, b in itertools.pairwise(t))
         assert all(s <= kf < kt <= e and e - s <= max(768, 0) for s, e, kf, kt in t)
 
 
@@ -93,8 +94,8 @@ def test_learned_errors(tmp_path):
     (tmp_path / "m.json").write_text(json.dumps({"format": "other"}))
     with pytest.raises(InputError, match="format"):
         learned.LearnedSegmenter(SegmentConfig(), weights=fake)
-    (tmp_path / "m.json").write_text(json.dumps({"format": learned.FORMAT, "classes": list(
-        ("water", "asphalt", "sidewalk", "grass", "trees", "dirt", "rocks", "sand")), "work_gsd_m": 0.3}))
+    (tmp_path / "m.json").write_text(json.dumps({"format": learned.FORMAT, "classes": [
+        "water", "asphalt", "sidewalk", "grass", "trees", "dirt", "rocks", "sand"], "work_gsd_m": 0.3}))
     seg = learned.LearnedSegmenter(SegmentConfig(), weights=fake)
     with pytest.raises(InputError, match="not a loadable ONNX"):
         seg.segment(GeoImage(rgb=_scene(64), grid=Grid(64, 64, 0.2)), 0)

@@ -97,7 +97,7 @@ def test_riprap_that_averages_out_on_the_working_raster_is_not_sidewalk():
 
     from coastforge.segmentation.features import fine_texture
 
-    full, paving, stones = _pavement_and_stones()
+    full, _paving, _stones = _pavement_and_stones()
     small = cv2.resize(full, (120, 80), interpolation=cv2.INTER_AREA)
     water = np.zeros((80, 120), bool)
     core_p = np.zeros((80, 120), bool)

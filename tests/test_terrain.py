@@ -41,7 +41,7 @@ def test_water_below_and_land_above_the_water_level(kind):
 
 def test_beach_follows_deans_profile_within_20_percent():
     cfg = TerrainConfig()
-    ids, z, _ = _run("beach", cfg)
+    _ids, z, _ = _run("beach", cfg)
     d = (np.arange(X0, N) - X0 + 0.5) * GSD  # distance offshore of each water column
     dean = dean_depth(d, cfg.d50_mm)
     for row in (30, 128, 200):
@@ -57,7 +57,7 @@ def test_beach_follows_deans_profile_within_20_percent():
 
 def test_quay_wall_is_vertical_with_berth_depth_in_front():
     cfg = TerrainConfig(berth_depth_m=5.0, quay_height_m=1.4)
-    ids, z, _ = _run("quay", cfg)
+    _ids, z, _ = _run("quay", cfg)
     for row in range(0, N, 17):
         assert z[row, X0] == pytest.approx(-cfg.berth_depth_m, abs=0.05)  # the first water pixel
         assert z[row, X0 - 1] == pytest.approx(cfg.quay_height_m, abs=0.05)  # the wall's top
@@ -148,7 +148,7 @@ def test_cross_sections_cross_the_shore_once_per_type():
 def test_bad_inputs_name_the_value():
     with pytest.raises(ConfigError, match="max_depth_m"):
         DefaultTerrain(TerrainConfig(max_depth_m=-1.0))
-    with pytest.raises(InputError, match="class id|id 9"):
+    with pytest.raises(InputError, match=r"class id|id 9"):
         estimate_terrain(ClassMap(np.full((8, 8), 9, np.uint8), Grid(8, 8, 1.0)), TerrainConfig())
     with pytest.raises(InputError, match="shape"):
         estimate_terrain(ClassMap(np.zeros((8, 9), np.uint8), Grid(8, 8, 1.0)), TerrainConfig())

@@ -10,6 +10,7 @@ check what the script did: centimetres, left-handed Y, yaw sign, folders, tags, 
 from __future__ import annotations
 
 import types
+from typing import ClassVar
 
 import numpy as np
 
@@ -76,7 +77,7 @@ class StubMeta(type):
 
 
 class StubObject(metaclass=StubMeta):
-    _props_default: dict = {}
+    _props_default: ClassVar[dict] = {}
 
     def __init__(self, *args, **kwargs):
         object.__setattr__(self, "_props", dict(self._props_default))
@@ -157,7 +158,7 @@ class ComponentMobility(StubObject):
 
 
 class SceneComponent(StubObject):
-    _props_default = {"mobility": EnumValue("ComponentMobility.MOVABLE")}
+    _props_default: ClassVar[dict] = {"mobility": EnumValue("ComponentMobility.MOVABLE")}
 
 
 # ---------------------------------------------------------------- objects
@@ -205,7 +206,7 @@ class World(StubObject):
 
 
 class Actor(StubObject):
-    _props_default = {"tags": []}
+    _props_default: ClassVar[dict] = {"tags": []}
 
     def __init__(self, location=None, rotation=None, asset=None, label="Actor"):
         super().__init__()
@@ -311,7 +312,7 @@ class Material(Asset):
 
 
 class AssetImportTask(StubObject):
-    _props_default = {"imported_object_paths": []}
+    _props_default: ClassVar[dict] = {"imported_object_paths": []}
 
 
 class AssetTools(StubObject):

@@ -35,11 +35,17 @@ _LAZY: dict[str, tuple[str, str]] = {
 __all__ = ["__version__", *_LAZY]
 
 if TYPE_CHECKING:  # what type checkers and IDEs see; at run time __getattr__ imports on first use
-    from .api import ExportResult, evaluate_scenes, export_scene, generate, make_config
-    from .config import Config
-    from .errors import CoastforgeError
-    from .pipeline import GenerateResult
-    from .scene import Scene, SceneObject
+    # `import X as X`: an explicit re-export (these names are the package's API)
+    from .api import ExportResult as ExportResult
+    from .api import evaluate_scenes as evaluate_scenes
+    from .api import export_scene as export_scene
+    from .api import generate as generate
+    from .api import make_config as make_config
+    from .config import Config as Config
+    from .errors import CoastforgeError as CoastforgeError
+    from .pipeline import GenerateResult as GenerateResult
+    from .scene import Scene as Scene
+    from .scene import SceneObject as SceneObject
 
 
 def __getattr__(name: str) -> Any:

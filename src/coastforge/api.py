@@ -41,13 +41,13 @@ if TYPE_CHECKING:  # pragma: no cover
     from .scene import Scene
 
 PathLike = Union[str, "os.PathLike[str]"]
-Settings = Union[Mapping[str, Any], Iterable[str]]  # {"terrain.max_depth_m": 12} or ["terrain.max_depth_m=12"]
+Settings = Mapping[str, Any] | Iterable[str]  # {"terrain.max_depth_m": 12} or ["terrain.max_depth_m=12"]
 
 __all__ = ["ExportResult", "evaluate_scenes", "export_scene", "generate", "make_config"]
 
 
-def make_config(config: "Config | PathLike | None" = None, *, preset: str | None = None,
-                settings: Settings | None = None, seed: int | None = None) -> "Config":
+def make_config(config: Config | PathLike | None = None, *, preset: str | None = None,
+                settings: Settings | None = None, seed: int | None = None) -> Config:
     """The run's config as the commands build it: the ``preset`` (default ``"default"``; see
     ``coastforge.config.preset_names()``) or a ``Config`` object, then a TOML file (``config`` as a path),
     then ``settings``, then ``seed``. Raises ``ConfigError`` naming a bad key or value."""
@@ -76,10 +76,10 @@ def make_config(config: "Config | PathLike | None" = None, *, preset: str | None
 def generate(image: PathLike, *, out: PathLike, gsd: float | None = None,
              size_m: tuple[float, float] | None = None, export: str | Iterable[str] = (),
              library: PathLike | None = None, dem: PathLike | Iterable[PathLike] = (), report: bool = True,
-             overwrite: bool = False, config: "Config | PathLike | None" = None, preset: str | None = None,
+             overwrite: bool = False, config: Config | PathLike | None = None, preset: str | None = None,
              settings: Settings | None = None, seed: int | None = None,
              progress: Callable[[str, float], None] | None = None, side_process: bool = False,
-             command: str | None = None) -> "GenerateResult":
+             command: str | None = None) -> GenerateResult:
     """Turn ``image`` (a PNG/JPEG with ``gsd`` metres per pixel or its ``size_m`` (width, height), or a
     GeoTIFF) into a scene in the folder ``out``, as ``coastforge generate`` does; returns a
     ``GenerateResult``: ``scene`` (loaded on first use), ``scene_path``, ``exports`` (files per format),
@@ -118,9 +118,9 @@ class ExportResult:
     notes: tuple[str, ...] = ()  # what the output folder's recovery did (an earlier run's leftovers removed)
 
 
-def export_scene(scene: "Scene | PathLike", formats: str | Iterable[str] | None = None, *,
+def export_scene(scene: Scene | PathLike, formats: str | Iterable[str] | None = None, *,
                  out: PathLike | None = None, library: PathLike | None = None, overwrite: bool = False,
-                 config: "Config | PathLike | None" = None, preset: str | None = None,
+                 config: Config | PathLike | None = None, preset: str | None = None,
                  settings: Settings | None = None, command: str | None = None) -> ExportResult:
     """Export a scene to simulator formats, each under ``out/<format>/``, as ``coastforge export`` does.
 
@@ -172,7 +172,7 @@ def export_scene(scene: "Scene | PathLike", formats: str | Iterable[str] | None 
     return ExportResult(target, files, tuple(notes))
 
 
-def evaluate_scenes(truth: "Scene | PathLike", pred: "Scene | PathLike") -> dict[str, Any]:
+def evaluate_scenes(truth: Scene | PathLike, pred: Scene | PathLike) -> dict[str, Any]:
     """The metrics of ``pred`` against ``truth`` (DESIGN.md §5), as ``coastforge evaluate --json`` prints
     them: ``n_truth``, ``n_pred``, ``n_matched``, ``xy_rmse_m``, ``rotation_rmse_deg``,
     ``orientation_rmse_deg``, ``recall``, ``match_precision``, ``match_precision_category``,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import operator
+import os
 import sys
 import typing
 from collections.abc import Iterable, Mapping
@@ -183,10 +184,7 @@ class LibraryConfig:
     query_view_random_lightings: int = 2
     # vehicles and boats also rendered between copies of themselves, as they are parked or berthed, at these
     # GSDs (this many views each, random lighting and yaw): a crop around a car in a row or a boat in a berth
-    # holds its neighbours too (synthetic-scene crops, seeds 0-2: category 0.77 -> 0.84, 0.88 with the
-    # embedder's background block; real DOTA crops 0.927 -> 0.954; rendered isolated queries, seeds 0-9:
-    # 63 -> 61 category misses, with the embedder's ring-clutter block; 5 views: synthetic 0.88 but 71
-    # rendered misses)
+    # holds its neighbours too (figures: docs/benchmarks.md, "library: crowded views")
     crowded_views: int = 2
     crowded_gsds_m: tuple[float, ...] = (0.1, 0.2)
 
@@ -205,7 +203,7 @@ class MatchConfig:
     shape_appearance_weight: float = 0.2  # the embedding's cosine added to the shape correlation
     shape_scale_weight: float = 0.02  # log-normal prior on an instance's size against the asset's
     shape_scale_sigma_boat: float = 0.15  # boats of one type vary in size ...
-    shape_scale_sigma_vehicle: float = 0.03  # ... cars of one model hardly do (0.05 -> 0.03: low-res vehicle match 0.83 -> 0.88, seed 0)
+    shape_scale_sigma_vehicle: float = 0.03  # ... cars of one model hardly do (docs/benchmarks.md)
     shape_scale_sigma_buoy: float = 0.1
     shape_length_weight: float = 0.02  # the detected length against the fitted asset's
     shape_length_sigma: float = 0.15
@@ -214,12 +212,12 @@ class MatchConfig:
     # heading (bow/stern) decision: the shape fit's evidence (NCC at the same minus at the flipped heading)
     # + the detector's prior (weight x logit(confidence)) + a grey-level cue; prior and grey cue are scaled by
     # ref_px / the object's length in compared pixels: on few pixels the fit's heading evidence is noisier.
-    # Tuned on synthetic seeds 0 and 1 (0.05 -> 0.02 with the per-heading fit placement), seed 2 held out.
+    # Tuned on synthetic seeds 0 and 1, seed 2 held out (docs/benchmarks.md).
     heading_prior_weight: float = 0.02
     heading_prior_ref_px: float = 45.0  # length (pixels) at which the weights apply as they are; <= 0: no scaling
     # the crop's grey levels against the chosen asset's mean view at both headings (polarity-aware: dark
-    # glass, light roof), which the paint-invariant fit cannot see. A tie-breaker: 0.02 took 0.2 m/px flips
-    # 40 -> 37 over seeds 0-2 (no seed worse); 0.05+ fixed more but moved flips onto small levels; 0 = off
+    # glass, light roof), which the paint-invariant fit cannot see. A tie-breaker, kept small so it does not
+    # move flips onto small levels (docs/benchmarks.md); 0 = off
     heading_appearance_weight: float = 0.02
     # placement from the shape fit: its scale instead of the box's (uniform scale mode), and a weighted mean of
     # its centre and the box centre (weights at 0.1 and 0.2 m/px, linear in the GSD, never below 0: the fit's
@@ -324,7 +322,7 @@ def _apply(cls: type, base: Any, data: dict, prefix: str) -> Any:
         if k not in names:
             raise _unknown_key(key, names)
         tp = hints[k]
-        if dataclasses.is_dataclass(tp):
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             changes[k] = _apply(tp, getattr(base, k), v, key + ".")
         else:
             changes[k] = _coerce(v, tp, key)
@@ -379,7 +377,7 @@ def parse_set(item: str) -> dict:
     return out
 
 
-def load_config(preset: str = "default", path: str | Path | None = None, sets: list[str] | tuple[str, ...] = (),
+def load_config(preset: str = "default", path: str | os.PathLike[str] | None = None, sets: list[str] | tuple[str, ...] = (),
                 seed: int | None = None) -> Config:
     """Build the config from a named preset, an optional TOML file, ``--set`` items and ``--seed``."""
     cfg = Config()
@@ -559,7 +557,7 @@ def validate_config(cfg: Config) -> Config:
             continue
         items = value if isinstance(value, tuple) else (value,)
         for v in items:
-            if isinstance(v, str) or isinstance(v, bool):
+            if isinstance(v, (str, bool)):
                 continue
             each = "" if items is not value else "a list whose every item is "
             if not math.isfinite(v):
@@ -593,7 +591,7 @@ def validate_config(cfg: Config) -> Config:
                                   f"--set {key}=... or in the config file")
     for key, stage in _BACKEND_STAGES.items():
         kind = "export format" if stage == "export" else f"{stage} backend"
-        valid = [s.name for s in registry.specs(stage)]
+        valid = tuple(s.name for s in registry.specs(stage))
         for v in flat[key] if isinstance(flat[key], tuple) else (flat[key],):
             if v not in valid:
                 raise ConfigError(f"config key {key} = {v!r} is not a known {kind}; valid: "

@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
-from typing import Iterator
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -81,11 +81,10 @@ def _umask() -> int:
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     path = Path(path)
     try:
-        with atomic_path(path) as tmp:
-            with open(tmp, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
     except OSError as exc:
         if exc.filename is None:  # a failed write names no file: name the one being written
             raise OSError(exc.errno, exc.strerror, str(path)) from exc
@@ -354,7 +353,7 @@ class FolderLock:
         self.path = _siblings(out)[0]
         self.fd: int | None = None
 
-    def acquire(self) -> "FolderLock":
+    def acquire(self) -> FolderLock:
         import fcntl
 
         while True:
@@ -388,14 +387,12 @@ class FolderLock:
     def release(self) -> None:
         if self.fd is None:
             return
-        try:
+        with contextlib.suppress(OSError):
             self.path.unlink(missing_ok=True)  # while still holding it: see acquire's inode check
-        except OSError:
-            pass
         os.close(self.fd)
         self.fd = None
 
-    def __enter__(self) -> "FolderLock":
+    def __enter__(self) -> FolderLock:
         return self.acquire()
 
     def __exit__(self, *exc) -> None:
@@ -466,6 +463,13 @@ def _swap_in(staging: Path, out: Path) -> None:
         os.rename(staging, out)
 
 
+def _add_note(exc: BaseException, note: str) -> None:
+    """``exc.add_note(note)`` where Python has it (3.11+); on 3.10 the exception goes on without the note."""
+    add = getattr(exc, "add_note", None)
+    if add is not None:
+        add(note)
+
+
 @contextlib.contextmanager
 def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bool = False, command: str = "",
                   notes: list[str] | None = None, inputs=()) -> Iterator[Path]:
@@ -526,10 +530,10 @@ def output_folder(out: str | os.PathLike, *, overwrite: bool = False, update: bo
             if staging.exists() and not _written_into(staging, out):  # failed before writing: nothing to keep
                 shutil.rmtree(staging, ignore_errors=True)
                 if isinstance(exc, KeyboardInterrupt):  # (an error's own message says enough)
-                    exc.add_note(f"{out} is unchanged")
+                    _add_note(exc, f"{out} is unchanged")
             elif staging.exists():
-                exc.add_note(f"{out} is unchanged; the partial output is in {staging} (the next run into {out} "
-                             "removes it)")
+                _add_note(exc, f"{out} is unchanged; the partial output is in {staging} (the next run into {out} "
+                          "removes it)")
             raise
         atomic_write_text(staging / MARKER, json.dumps({"tool": "coastforge", "command": command,
                                                         "completed": time.strftime("%Y-%m-%d %H:%M:%S"),

@@ -14,7 +14,7 @@ import numpy as np
 
 from .config import IOConfig
 from .errors import GeoreferenceWarning, InputError
-from .types import GeoImage, Grid
+from .types import Affine, GeoImage, Grid, affine6
 
 MIN_SIDE_PX = 16  # smaller images hold no shore profile or object to find (1 px broke np.gradient)
 MAX_ASPECT = 64  # longer strips are almost always a damaged or mis-sized file (every test image is under 5:1)
@@ -347,12 +347,12 @@ def _read_bands(src, path: Path) -> np.ndarray:
     return bands
 
 
-def north_up_georef(src, path) -> tuple[tuple[float, float], tuple[float, ...], str]:
+def north_up_georef(src, path) -> tuple[tuple[float, float], Affine, str]:
     """(GSD x, y), the affine transform and the CRS of an open, projected, georeferenced raster."""
     t = src.transform
     if abs(t.b) > 1e-12 or abs(t.d) > 1e-12:
         raise InputError(f"{path} has a rotated georeference; warp it north-up (gdalwarp) first")
-    return (abs(t.a), abs(t.e)), tuple(float(v) for v in (t.a, t.b, t.c, t.d, t.e, t.f)), src.crs.to_string()
+    return (abs(t.a), abs(t.e)), affine6((t.a, t.b, t.c, t.d, t.e, t.f)), src.crs.to_string()
 
 
 def _to_uint8(bands: np.ndarray, path: Path) -> np.ndarray:
@@ -378,7 +378,7 @@ def _read_geographic(src, path: Path, gsd_m, size_m, cfg: IOConfig, stages=None)
         lon0, lat0, lon1, lat1 = transform_bounds(src.crs, "EPSG:4326", *src.bounds)
         dst_crs = _utm_crs((lon0 + lon1) / 2, (lat0 + lat1) / 2)
         transform, w, h = calculate_default_transform(src.crs, dst_crs, src.width, src.height, *src.bounds)
-    except Exception as exc:  # noqa: BLE001 - GDAL raises its own CPLE_* types (e.g. metres under a lat/lon CRS)
+    except Exception as exc:  # GDAL raises its own CPLE_* types (e.g. metres under a lat/lon CRS)
         raise InputError(f"{path} claims a geographic CRS ({src.crs.to_string()}) but its bounds {tuple(src.bounds)} "
                          f"cannot be reprojected ({exc}); check its CRS and transform (gdalinfo)") from exc
     res = (abs(transform.a) + abs(transform.e)) / 2.0

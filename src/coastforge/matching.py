@@ -16,6 +16,7 @@ scale and centre offset) is recorded.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 
 import math
@@ -167,15 +168,14 @@ def _warn_library(exc: Exception) -> None:
                   stacklevel=3)
 
 
-def shape_matcher(library) -> "ShapeMatcher":
+def shape_matcher(library) -> ShapeMatcher:
     """The library's shape matcher (its templates are cached across calls, e.g. over the tiles of a scene)."""
     sm = getattr(library, "_shape_matcher", None)
     if sm is None or sm.library is not library:
         sm = ShapeMatcher(library)
-        try:
+        # a library-like object that takes no attributes: no cache across calls
+        with contextlib.suppress(AttributeError):
             library._shape_matcher = sm
-        except AttributeError:  # a library-like object that takes no attributes: no cache across calls
-            pass
     return sm
 
 
@@ -488,7 +488,7 @@ class ShapeMatcher:
                                 np.ascontiguousarray(sil[cut]))
         return self._views[key]
 
-    def template(self, asset_id: str, background: str, gsd: float, scale: float) -> "_Template":
+    def template(self, asset_id: str, background: str, gsd: float, scale: float) -> _Template:
         """The orientation field x silhouette mask of the asset scaled by ``scale`` and seen at ``gsd``, front
         at +x, footprint centre at the template centre; the field is the mean over the asset's views (the
         lightings and repainted copies: edges that every paint shows count most)."""

@@ -137,12 +137,12 @@ class LandProbe:
         inside = (r >= 0) & (r < g.height_px) & (c >= 0) & (c < g.width_px)
         return bool(self.land[r[inside], c[inside]].any())
 
-    def end_touches(self, box: "PierBox", end: np.ndarray, tol_m: float) -> bool:
+    def end_touches(self, box: PierBox, end: np.ndarray, tol_m: float) -> bool:
         """Does the end edge of ``box`` at ``end`` come within ``tol_m`` of land (its centre or a corner)? A
         structure called grounded must really touch the shore, as the evaluation checks it."""
         return bool(self.ends_touch(box, np.asarray(end, float)[None, :], tol_m)[0])
 
-    def ends_touch(self, box: "PierBox", ends: np.ndarray, tol_m: float) -> np.ndarray:
+    def ends_touch(self, box: PierBox, ends: np.ndarray, tol_m: float) -> np.ndarray:
         """``end_touches`` for many candidate ends (k, 2) at once: one gather for every step of a ray."""
         g = self.grid
         side = np.array([-box.axis[1], box.axis[0]]) * (box.width_m / 2)

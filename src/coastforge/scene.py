@@ -13,14 +13,14 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
 from .classes import N_CLASSES, OBJECT_CATEGORIES
 from .errors import SceneFormatError
 from .fsio import atomic_write_text, read_png, write_geotiff, write_png
-from .types import Grid
+from .types import Affine, Grid, affine6
 
 FORMAT = "coastforge.scene/1"
 SOURCES = ("detection", "pier", "synthetic", "manual")
@@ -69,12 +69,12 @@ class Vegetation:
         return len(self.x_m)
 
     @staticmethod
-    def empty() -> "Vegetation":
+    def empty() -> Vegetation:
         e = np.zeros(0)
         return Vegetation(np.array([], dtype=object), np.array([], dtype=object), e, e, e, e, e)
 
     @staticmethod
-    def from_rows(rows: list[dict]) -> "Vegetation":
+    def from_rows(rows: list[dict]) -> Vegetation:
         if not rows:
             return Vegetation.empty()
         return Vegetation(
@@ -99,7 +99,7 @@ class Scene:
     extent_m: tuple[float, float]
     water_level_m: float = 0.0
     crs: str | None = None
-    transform: tuple[float, ...] | None = None
+    transform: Affine | None = None
     height: np.ndarray | None = None  # (H, W) float32 metres on the scene grid
     classes: np.ndarray | None = None  # (H, W) uint8 class ids
     objects: tuple[SceneObject, ...] = ()
@@ -120,13 +120,13 @@ class Scene:
         else:
             w, h = round(self.extent_m[0] / self.gsd_m), round(self.extent_m[1] / self.gsd_m)
         gsd = self.extent_m[0] / w
-        return Grid(w, h, gsd, self.crs, tuple(self.transform) if self.transform else None)
+        return Grid(w, h, gsd, self.crs, self.transform if self.transform else None)
 
-    def with_objects(self, objects) -> "Scene":
+    def with_objects(self, objects) -> Scene:
         return replace(self, objects=tuple(objects))
 
     @classmethod
-    def load(cls, path: str | Path, rasters: bool = True) -> "Scene":
+    def load(cls, path: str | Path, rasters: bool = True) -> Scene:
         """The scene in ``path``: a scene folder, its ``scene.json``, or a synthetic level's ``truth.json``
         (``load_scene``). Raises ``SceneFormatError`` naming what is missing or malformed."""
         return load_scene(path, rasters=rasters)
@@ -139,7 +139,7 @@ class Scene:
 # ---------------------------------------------------------------- validation
 
 
-def _fail(where: str, msg: str) -> None:
+def _fail(where: str, msg: str) -> NoReturn:
     raise SceneFormatError(f"{where}: {msg}")
 
 
@@ -190,7 +190,7 @@ def object_from_dict(d: Any, where: str) -> SceneObject:
     return SceneObject(
         id=_str(d, "id", where), category=cat, asset_id=_str(d, "asset_id", where),
         x_m=_num(d, "x_m", where), y_m=_num(d, "y_m", where), z_m=_num(d, "z_m", where), yaw_deg=yaw,
-        scale=tuple(float(s) for s in sc), length_m=_num(d, "length_m", where, positive=True),
+        scale=(float(sc[0]), float(sc[1]), float(sc[2])), length_m=_num(d, "length_m", where, positive=True),
         width_m=_num(d, "width_m", where, positive=True), source=src, score=_num(d, "score", where), attrs=attrs,
     )
 
@@ -259,12 +259,12 @@ def scene_from_dict(d: Any, where: str = "scene.json") -> Scene:
     objs = d.get("objects")
     if not isinstance(objs, list):
         _fail(where, f"objects = {objs!r} must be a list")
-    objects = []
+    loaded: list[SceneObject] = []
     for i, o in enumerate(objs):
         named = f" (id {o['id']!r})" if isinstance(o, dict) and isinstance(o.get("id"), str) else ""
-        objects.append(object_from_dict(o, f"{where}: objects[{i}]{named}"))
-        _check_inside(where, f"object {objects[-1].id!r}", objects[-1].x_m, objects[-1].y_m, ext)
-    objects = tuple(objects)
+        loaded.append(object_from_dict(o, f"{where}: objects[{i}]{named}"))
+        _check_inside(where, f"object {loaded[-1].id!r}", loaded[-1].x_m, loaded[-1].y_m, ext)
+    objects = tuple(loaded)
     ids = [o.id for o in objects]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
@@ -289,7 +289,7 @@ def scene_from_dict(d: Any, where: str = "scene.json") -> Scene:
         _fail(where, f"provenance = {prov!r} must be an object")
     return Scene(
         name=name, seed=seed, gsd_m=gsd, extent_m=(float(ext[0]), float(ext[1])), water_level_m=wl, crs=crs,
-        transform=tuple(float(v) for v in tr) if tr else None, objects=objects, vegetation=vegetation,
+        transform=affine6(tr) if tr else None, objects=objects, vegetation=vegetation,
         provenance=prov, terrain_paths=dict(terrain), vegetation_ref=veg_ref,
         extra={k: v for k, v in d.items() if k not in _TOP},
     )
@@ -435,7 +435,7 @@ def vegetation_from_rows(rows: list[dict], where: str, row_name) -> Vegetation:
     instance; a NaN height or a negative scale would be written as is)."""
     for i, r in enumerate(rows):
         for k in VEG_COLUMNS[2:]:
-            v = r.get(k)
+            v: Any = r.get(k)
             try:
                 f = float(v)
             except (TypeError, ValueError):

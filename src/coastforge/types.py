@@ -6,12 +6,21 @@ Field names carry their units (``gsd_m``, ``yaw_deg``, ``_px``).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import frames
 
+
+Affine = tuple[float, float, float, float, float, float]
+
+
+def affine6(values: Iterable[float]) -> Affine:
+    """An affine transform (a, b, c, d, e, f) as six floats; any other count raises ``ValueError``."""
+    a, b, c, d, e, f = (float(v) for v in values)
+    return (a, b, c, d, e, f)
 
 @dataclass(frozen=True)
 class Grid:
@@ -42,7 +51,7 @@ class Grid:
         w, h = self.extent_m
         return (self.gsd_m, 0.0, -w / 2.0, 0.0, -self.gsd_m, h / 2.0)
 
-    def resized(self, width_px: int, height_px: int) -> "Grid":
+    def resized(self, width_px: int, height_px: int) -> Grid:
         """The same extent on another pixel grid (gsd follows the width)."""
         gsd = self.extent_m[0] / width_px
         t = None

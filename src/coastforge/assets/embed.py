@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Sequence
+from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 
@@ -244,7 +245,7 @@ def _glint_mask(lab: np.ndarray, edge: np.ndarray) -> np.ndarray | None:
     h, w = L.shape
     r0 = max(1, int(round(CENTRE_FRAC * min(h, w))))
     cy, cx = (h - 1) // 2, (w - 1) // 2
-    n, lbl = cv2.connectedComponents(glint, connectivity=8)
+    _n, lbl = cv2.connectedComponents(glint, connectivity=8)
     centre = np.unique(lbl[max(0, cy - r0 + 1): cy + r0 + 1, max(0, cx - r0 + 1): cx + r0 + 1])
     return (lbl > 0) & ~np.isin(lbl, centre[centre > 0])
 
@@ -497,7 +498,7 @@ class DefaultEmbedder:
     # Block weights (relative importance in the inner product); tuned on the retrieval benchmark. The size
     # from the mask counts half since the edge extent also measures the object (misses 40 / 33 -> 40 / 25 of
     # seeds 0-4 / 5-9, asset misses 61 / 60 -> 53 / 43)
-    WEIGHTS = {
+    WEIGHTS: ClassVar[dict[str, float]] = {
         "size": 0.5, "colour_ab": 1.5, "colour_l": 0.5, "layout": 1.2,
         "shape": 0.6, "profile": 0.6, "radial": 0.6, "hog": 0.9, "lbp": 0.4, "contrast": 1.5,
         "contrast_dir": 1.0, "edge_extent": 1.5, "clutter": 0.7, "background": 1.0,

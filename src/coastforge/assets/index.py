@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import hashlib
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -111,7 +111,7 @@ class VectorIndex:
         return digest
 
     @classmethod
-    def load(cls, path: str | Path, row_asset: Sequence[int], dim: int, sha256: str | None = None) -> "VectorIndex":
+    def load(cls, path: str | Path, row_asset: Sequence[int], dim: int, sha256: str | None = None) -> VectorIndex:
         import faiss
 
         path = Path(path)

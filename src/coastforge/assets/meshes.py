@@ -108,7 +108,7 @@ def _side_files(path: Path) -> set[Path]:
     return {p for p in out if p.is_file()}
 
 
-def load_mesh(path: str | Path, asset_id: str = "") -> "trimesh.Trimesh":  # noqa: F821
+def load_mesh(path: str | Path, asset_id: str = "") -> trimesh.Trimesh:  # noqa: F821
     """Read a model file into one triangle mesh with vertex colours (textures sampled per vertex)."""
     import trimesh
 
@@ -131,9 +131,8 @@ def load_mesh(path: str | Path, asset_id: str = "") -> "trimesh.Trimesh":  # noq
             g = loaded.geometry.get(geom_name)
             if isinstance(g, trimesh.Trimesh) and len(g.faces):
                 parts.append(_coloured(g).apply_transform(transform))
-    elif isinstance(loaded, trimesh.Trimesh):
-        if len(loaded.faces):
-            parts.append(_coloured(loaded))
+    elif isinstance(loaded, trimesh.Trimesh) and len(loaded.faces):
+        parts.append(_coloured(loaded))
     if not parts:
         raise LibraryError(f"asset {name!r}: mesh {path} has no triangles (empty or point cloud only)")
     mesh = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
@@ -159,7 +158,7 @@ def _coloured(g):
             colors = np.hstack([colors, np.full((len(colors), 1), 255, np.uint8)])
         if colors.shape != (len(g.vertices), 4):
             raise ValueError("no per-vertex colours")
-    except Exception:  # no material / broken texture: neutral grey keeps the geometry usable
+    except Exception:  # noqa: BLE001 - no material / broken texture: neutral grey keeps the geometry usable
         colors = np.tile(np.array([[180, 180, 180, 255]], np.uint8), (len(g.vertices), 1))
     g.visual = trimesh.visual.ColorVisuals(g, vertex_colors=colors)
     return g
@@ -207,7 +206,7 @@ def _detect_up(pts: np.ndarray, category: str, suffix: str) -> tuple[tuple[int, 
     cands = [(1, 1), (2, 1)]
     scores = {c: (0.75 if c == prior else 0.0) + _up_score(pts, c[0], c[1], category) for c in cands}
     best = max(cands, key=lambda c: scores[c])
-    other = [c for c in cands if c != best][0]
+    other = next(c for c in cands if c != best)
     conv = "glTF/OBJ y-up" if prior == (1, 1) else "STL/PLY z-up"
     why = "the format convention" if best == prior else f"the {category} shape (against the {conv} convention)"
     sure = "" if scores[best] - scores[other] > 0.5 else " (low confidence: set up_axis to be sure)"
@@ -281,7 +280,7 @@ def normalise_mesh(mesh, category: str, *, asset_id: str = "", length_m: float |
         horiz = [a for a in range(3) if a != up[0]]
         ext = np.ptp(pts, axis=0)
         long_axis = max(horiz, key=lambda a: ext[a])
-        lat_axis = [a for a in horiz if a != long_axis][0]
+        lat_axis = next(a for a in horiz if a != long_axis)
         if category == "vehicle":
             r = _rotation(up, (long_axis, 1))
             sign, note = _vehicle_forward(pts @ r.T, long_axis, lat_axis)
@@ -291,7 +290,7 @@ def normalise_mesh(mesh, category: str, *, asset_id: str = "", length_m: float |
         notes.append(note or f"forward {axis_name(*fwd)}: the long horizontal axis ({category} has no front)")
     rot = _rotation(up, fwd)
     ext = np.ptp(np.asarray(mesh.vertices, float) @ rot.T, axis=0)
-    if length_m is not None and length_m <= 0 or height_m is not None and height_m <= 0:
+    if (length_m is not None and length_m <= 0) or (height_m is not None and height_m <= 0):
         raise LibraryError(f"asset {name!r}: length_m/height_m must be positive, got {length_m}/{height_m}")
     if length_m is not None:
         long_h = max(ext[0], ext[1])

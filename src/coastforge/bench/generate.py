@@ -83,7 +83,7 @@ def calibrate_parallel(n: int = 2) -> tuple[float, float]:
     from concurrent.futures import ProcessPoolExecutor
 
     saved = {k: os.environ.get(k) for k in _ONE_THREAD}
-    os.environ.update({k: "1" for k in _ONE_THREAD})  # read by the workers' numpy when they start
+    os.environ.update(dict.fromkeys(_ONE_THREAD, "1"))  # read by the workers' numpy when they start
     try:
         pool = ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn"))
         pids = set(pool.map(_start, range(n)))  # every worker started (and warm) before the timed runs

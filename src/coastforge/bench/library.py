@@ -35,7 +35,7 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 from ..rng import stage_rng
 from .segmentation import SHARED as SHARED_DATA  # ../shared/data beside the project
@@ -54,7 +54,7 @@ def render_queries(lib, per_asset: int, seed: int, gsd_range=(0.05, 0.3)):
             continue
         mesh = lib.mesh(a.id)
         rng = stage_rng(seed, "bench-library", a.id)
-        for q in range(per_asset):
+        for _q in range(per_asset):
             gsd = float(math.exp(rng.uniform(math.log(gsd_range[0]), math.log(gsd_range[1]))))
             yaw = float(rng.uniform(-180, 180))
             bg = str(rng.choice(["water", "ground"]))
@@ -214,7 +214,7 @@ def retrieval(lib, queries, seeds: Sequence[int] | None = None) -> dict:
     per_seed = defaultdict(lambda: [0, 0, 0])
     confusions = defaultdict(int)
     ok_asset = ok_cat = 0
-    for i, ((img, gsd, aid, cat), h) in enumerate(zip(queries, hits)):
+    for i, ((_img, _gsd, aid, cat), h) in enumerate(zip(queries, hits)):
         top = h[0][0] if h else None
         tcat = lib.asset(top).category if top else None
         ok_asset += top == aid
@@ -230,7 +230,7 @@ def retrieval(lib, queries, seeds: Sequence[int] | None = None) -> dict:
     by_px: dict = defaultdict(lambda: [0, 0, 0])
     by_px_cat: dict = defaultdict(lambda: defaultdict(lambda: [0, 0]))
     matrix: dict = defaultdict(lambda: defaultdict(int))
-    for (img, gsd, aid, cat), h in zip(queries, hits):
+    for (_img, gsd, aid, cat), h in zip(queries, hits):
         top = h[0][0] if h else None
         tcat = lib.asset(top).category if top else "none"
         band = pixel_band(max(lib.asset(aid).dims_m[:2]) / gsd)
@@ -379,7 +379,7 @@ def main(argv=None) -> None:
             for s in args.synth_seeds:
                 try:
                     more, why = synth_levels(s)
-                except Exception as exc:  # another stage's code: report, do not lose the other figures
+                except Exception as exc:  # noqa: BLE001 - another stage's code: report, do not lose the other figures
                     more, why = [], f"synthetic levels failed: {type(exc).__name__}: {exc}"
                 levels += more
             sq = synth_queries(lib, levels) if levels else []

@@ -19,6 +19,7 @@ is printed beside them.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
@@ -69,7 +70,7 @@ def write_mirrored_geotiff(path: Path, base: np.ndarray, size_px: int, band_rows
     import rasterio
     from affine import Affine
 
-    bh, bw = base.shape[:2]
+    _bh, _bw = base.shape[:2]
     ext_x = np.concatenate([base, base[:, ::-1]], axis=1)  # one period along x: base + its mirror
     ext = np.concatenate([ext_x, ext_x[::-1]], axis=0)  # and along y
     ph, pw = ext.shape[:2]
@@ -177,11 +178,9 @@ def _json_lines(text: str, key: str) -> list[dict]:
     """The child's JSON progress lines whose first key is ``key`` (``{"tile": ...}``, ``{"stage": ...}``)."""
     out = []
     for line in text.splitlines():
-        if line.startswith('{"%s"' % key):
-            try:
+        if line.startswith(f'{{"{key}"'):
+            with contextlib.suppress(json.JSONDecodeError):
                 out.append(json.loads(line))
-            except json.JSONDecodeError:
-                pass
     return out
 
 
@@ -322,7 +321,7 @@ def bench_per_pixel(work: Path, whole_px: int = 2048, tiled_px: int = 4096, tile
         a, b = w["timings_s"].get(k, 0.0), t["timings_s"].get(k, 0.0)
         stages[k] = {"whole_s": a, "tiled_s": b, "per_px_ratio": (b / area / a) if a > 0 else None}
         print(f"        {k:<11} whole {a:7.2f} s  tiled {b:7.2f} s  per pixel "
-              f"{'%.2fx' % stages[k]['per_px_ratio'] if a > 0 else '-'}", flush=True)
+              f"{format(stages[k]['per_px_ratio'], '.2f') + 'x' if a > 0 else '-'}", flush=True)
     print(f"tiled / whole cost per pixel: wall {ratios['wall']:.2f}x, CPU {ratios['cpu']:.2f}x "
           f"(within 1.3x: wall {ratios['wall'] <= 1.3}, CPU {ratios['cpu'] <= 1.3})", flush=True)
     res = {"runs": runs, "ratio_per_px": ratios, "stages": stages}

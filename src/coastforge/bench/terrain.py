@@ -249,7 +249,7 @@ def main(argv: list[str] | None = None) -> None:
         for p in PRESETS:
             try:
                 r = synth_rmse(p)
-            except Exception as exc:  # a broken preset should not hide the others' figures
+            except Exception as exc:  # noqa: BLE001 - a broken preset should not hide the others' figures
                 print(f"{p:14s} failed: {exc}")
                 continue
             (rl, rw), shape = r["default"], r["shape"]

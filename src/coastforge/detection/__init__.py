@@ -15,7 +15,7 @@ import json
 import math
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol, overload
 
 import numpy as np
 
@@ -31,6 +31,14 @@ class Detector(Protocol):
     def detect(self, image: GeoImage, class_map: ClassMap | None, seed: int) -> list[Detection]: ...
 
 
+@overload
+def detect(image: GeoImage, config: DetectConfig | None = None, class_map: ClassMap | None = None,
+           backend: str | None = None, seed: int = 0, return_class_map: Literal[False] = False,
+           **opts: Any) -> list[Detection]: ...
+@overload
+def detect(image: GeoImage, config: DetectConfig | None = None, class_map: ClassMap | None = None,
+           backend: str | None = None, seed: int = 0, *, return_class_map: Literal[True],
+           **opts: Any) -> tuple[list[Detection], ClassMap | None, dict]: ...
 def detect(image: GeoImage, config: DetectConfig | None = None, class_map: ClassMap | None = None,
            backend: str | None = None, seed: int = 0, return_class_map: bool = False,
            **opts: Any) -> list[Detection] | tuple[list[Detection], ClassMap | None, dict]:

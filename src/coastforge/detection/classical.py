@@ -100,9 +100,12 @@ def _find_objects(labels: np.ndarray):
         return []
     lv = labels[rr, cc]
     n = int(lv.max()) + 1
-    r0 = np.full(n, 1 << 30); c0 = np.full(n, 1 << 30); r1 = np.full(n, -1); c1 = np.full(n, -1)
-    np.minimum.at(r0, lv, rr); np.minimum.at(c0, lv, cc)
-    np.maximum.at(r1, lv, rr); np.maximum.at(c1, lv, cc)
+    r0, c0 = np.full(n, 1 << 30), np.full(n, 1 << 30)
+    r1, c1 = np.full(n, -1), np.full(n, -1)
+    np.minimum.at(r0, lv, rr)
+    np.minimum.at(c0, lv, cc)
+    np.maximum.at(r1, lv, rr)
+    np.maximum.at(c1, lv, cc)
     return [(k, (slice(int(r0[k]), int(r1[k]) + 1), slice(int(c0[k]), int(c1[k]) + 1)))
             for k in range(1, n) if r1[k] >= 0]
 
@@ -510,7 +513,7 @@ class ClassicalDetector:
                 continue
             rr, cc = np.nonzero(m)
             pts = np.stack([cc + sl[1].start, rr + sl[0].start], 1).astype(np.float32)
-            (cx, cy), (a, b), ang = cv2.minAreaRect(pts)
+            (cx, cy), (a, b), _ang = cv2.minAreaRect(pts)
             a, b = a + 1.0, b + 1.0
             length, width = max(a, b), min(a, b)
             # at satellite scale only large vessels are visible: the upper limit follows the pixel size
@@ -544,7 +547,7 @@ class ClassicalDetector:
     def _axis_yaw(pts: np.ndarray, c) -> float:
         rel = pts - np.asarray(c, dtype=np.float32)
         cov = rel.T @ rel / max(len(rel), 1)
-        w, v = np.linalg.eigh(cov)
+        _w, v = np.linalg.eigh(cov)
         e = v[:, 1]
         return float(wrap_half_deg(yaw_from_direction_px(e[0], e[1])))
 
@@ -643,7 +646,7 @@ class ClassicalDetector:
             cand = _fill_holes(cand.astype(np.uint8), (1.2 / gsd) ** 2)  # dark windows in a white body
             cand = cv2.morphologyEx(cand, cv2.MORPH_OPEN, se)
             cand_all |= cand.astype(bool)
-            n, lbl, st, cen = cv2.connectedComponentsWithStats(cand, connectivity=8)
+            n, lbl, st, _cen = cv2.connectedComponentsWithStats(cand, connectivity=8)
             for k in range(1, n):
                 x, y, ww_, hh_, area = st[k]
                 if area * gsd * gsd < 2.5 or area * gsd * gsd > 400.0:  # up to a row of ~30 cars

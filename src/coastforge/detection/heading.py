@@ -44,7 +44,7 @@ def box_coords(det: Detection, cols: np.ndarray, rows: np.ndarray) -> tuple[np.n
 def width_profile(mask: np.ndarray, origin: tuple[int, int], det: Detection, bins: int = 20) -> np.ndarray:
     """Width of the silhouette (pixels across the long axis) in ``bins`` slices from back (-L/2) to front."""
     rr, cc = np.nonzero(mask)
-    u, v = box_coords(det, cc + origin[0], rr + origin[1])
+    u, _v = box_coords(det, cc + origin[0], rr + origin[1])
     half = det.length_px / 2.0
     k = np.clip(((u + half) / det.length_px * bins).astype(int), 0, bins - 1)
     ok = np.abs(u) <= half * 1.05

@@ -33,7 +33,6 @@ import numpy as np
 from ..classes import WATER
 from ..config import DetectConfig
 from ..types import ClassMap, Detection, GeoImage
-from . import values_under_box
 
 PIERS = ("pier_walkway", "pier_finger")
 UNION_IOA = 0.3
@@ -109,7 +108,7 @@ class HybridDetector:
             extra = _net_axes(extra, weak)
         # learned boxes first, so on overlap the learned box (better orientation and heading) survives;
         # a classical box lying mostly inside a learned one is a piece of the same boat (a cabin, a
-        # deck split by shadow) and goes too (real marina: precision 0.69 -> 0.73 at the same recall)
+        # deck split by shadow) and goes too (docs/benchmarks.md, "detection: hybrid merge")
         merged = rotated_nms([*objects, *[_demote(d) for d in extra]], self.config.nms_iou,
                              ioa_threshold=UNION_IOA)
         return merged + piers

@@ -40,8 +40,8 @@ VEHICLE_MAX_IOA = 0.1
 # ``tta_axes``: the crop around an object is this many times its length (at least TTA_MIN_PX), in working
 # pixels; a turned crop's box is the object's when its centre is within TTA_MATCH of the length
 TTA_CROP, TTA_MIN_PX, TTA_MATCH = 1.2, 64, 0.3
-# vehicles gained nothing once ``refine`` had fitted their mirror axis (synthetic seeds 0-4: RMSE 1.17° ->
-# 1.12° at 0.2 m/px, 0.58° -> 0.59° at 0.1) and are most of the objects in car parks: not worth the time
+# vehicles gained nothing once ``refine`` had fitted their mirror axis (docs/benchmarks.md) and are most of
+# the objects in car parks: not worth the time
 TTA_CATEGORIES = ("boat",)
 
 

@@ -180,7 +180,7 @@ def _segments(lines: np.ndarray, angle_deg: float, min_len_px: float, category: 
         yaw = float(wrap_half_deg(angle_deg))
         if length > 4 * width:
             rel = pts - pts.mean(0)
-            ev, evec = np.linalg.eigh(rel.T @ rel)
+            _ev, evec = np.linalg.eigh(rel.T @ rel)
             own = float(wrap_half_deg(yaw_from_direction_px(evec[0, 1], evec[1, 1])))
             if abs(wrap_half_deg(own - yaw)) < 4.0:
                 yaw = own

@@ -72,9 +72,8 @@ SYM_EDGE_CONTRAST = 1.4
 # while the median error was 0.8°). The colour cost's mirror rows reach to the car's edges
 # (VEH_SYM_HV x width: the outline carries the axis), a lightness-only cost over the usual rows
 # (SYM_HV) is averaged with it (each over its mean on the grid), and a turn costs a little (the cost
-# grows by VEH_SYM_PRIOR x (turn / 10°)²; the net's axis is within 3° RMS): orientation RMSE at
-# 0.2 m/px seeds 0+1 1.49 -> 1.18°, seed 2 2.04 -> 1.48°; at 0.1 m/px 0.75 -> 0.62° (seed 2 0.57 ->
-# 0.55°). Seeds 0-2 were used to choose among a dozen such variants (seed 3 held out)
+# grows by VEH_SYM_PRIOR x (turn / 10°)²; the net's axis is within 3° RMS). Seeds 0-2 were used to choose
+# among a dozen such variants, seed 3 held out (figures: docs/benchmarks.md)
 VEH_SYM_HV, VEH_SYM_PRIOR, VEH_SYM_STEP = 0.55, 0.3, 1.0
 
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -99,7 +100,7 @@ class YoloDetector:
         self.config = config or DetectConfig()
         self.mapping = dict(DEFAULT_CLASS_MAP)
         if names_map:
-            self.mapping.update({k: v for k, v in names_map.items()})
+            self.mapping.update(names_map)
         self.imgsz = imgsz
         self._model = model  # an already-built model (tests); else loaded from weights on first use
         if model is None:
@@ -127,7 +128,7 @@ class YoloDetector:
 
     def _names(self, model) -> dict[int, str]:
         names = getattr(model, "names", None) or {}
-        return dict(names) if isinstance(names, dict) else {i: n for i, n in enumerate(names)}
+        return dict(names) if isinstance(names, dict) else dict(enumerate(names))
 
     def predict_windows(self, rgb: np.ndarray, windows: Iterable[tuple[int, int, int, int]]) -> list[Detection]:
         model = self._load()

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -44,7 +45,7 @@ TEXTURE_NAMES = ("cleaned.png", "cleaned.jpg", "image.png", "image.jpg", "input.
 class AssetResolver(Protocol):
     """What exporters may ask about an asset id."""
 
-    def mesh(self, asset_id: str) -> "trimesh.Trimesh": ...  # scene frame, metres, face colours
+    def mesh(self, asset_id: str) -> trimesh.Trimesh: ...  # scene frame, metres, face colours
 
     def mesh_path(self, asset_id: str) -> Path | None: ...  # a GLB on disk, if any
 
@@ -60,14 +61,14 @@ class DefaultResolver:
     exporters can texture the terrain with it; otherwise they use the class colours."""
 
     def __init__(self, library: Any = None, scene_dir: str | Path | None = None,
-                 mesh_lookup: Callable[[str], "trimesh.Trimesh | None"] | None = None,
+                 mesh_lookup: Callable[[str], trimesh.Trimesh | None] | None = None,
                  texture: np.ndarray | None = None):
         self.library = library
         self.scene_dir = Path(scene_dir) if scene_dir is not None else None
         self.mesh_lookup = mesh_lookup
         self._meshes: dict[str, Any] = {}
         # ``texture``: the terrain image when the caller already holds it (not read from scene_dir)
-        self._texture: np.ndarray | None | bool = False if texture is None else texture
+        self._texture: np.ndarray | bool | None = False if texture is None else texture
 
     # -- sources
     def _library_asset(self, asset_id: str):
@@ -187,7 +188,7 @@ def unique_names(ids: Iterable[str], maxlen: int = 64) -> dict[str, str]:
     return out
 
 
-def run_exporter(fmt: str, scene: "Scene", assets: AssetResolver, config: "ExportConfig") -> dict[str, bytes]:
+def run_exporter(fmt: str, scene: Scene, assets: AssetResolver, config: ExportConfig) -> dict[str, bytes]:
     from .. import registry
 
     fn = registry.load("export", fmt)
@@ -199,16 +200,16 @@ def run_exporter(fmt: str, scene: "Scene", assets: AssetResolver, config: "Expor
     return files
 
 
-def require_rasters(scene: "Scene") -> None:
+def require_rasters(scene: Scene) -> None:
     """Every exporter needs the terrain: refuse a scene without its height or class raster."""
     if scene.height is None or scene.classes is None:
         raise InputError(f"scene {scene.name!r} has no height or class raster; run `coastforge terrain` first")
 
 
-def export_scene(scene_dir_or_scene: "str | Path | Scene", formats: str | Iterable[str] = ("ue5", "holoocean", "gltf"),
+def export_scene(scene_dir_or_scene: str | Path | Scene, formats: str | Iterable[str] = ("ue5", "holoocean", "gltf"),
                  out_dir: str | Path | None = None, overwrite: bool = False,
                  mesh_lookup: Callable[[str], Any] | AssetResolver | None = None,
-                 config: "ExportConfig | None" = None, library: Any = None) -> dict[str, list[Path]]:
+                 config: ExportConfig | None = None, library: Any = None) -> dict[str, list[Path]]:
     """Export a scene (folder or ``Scene``) to ``out_dir/<format>/``; returns the written files per format.
 
     ``mesh_lookup`` is either a full ``AssetResolver`` or a function ``asset_id -> trimesh`` (None: not

@@ -38,7 +38,7 @@ def yaw_quaternion(yaw_deg: float) -> list[float]:
 
 
 def yaw_from_quaternion(q) -> float:
-    x, y, z, w = q
+    _x, y, _z, w = q
     return math.degrees(2.0 * math.atan2(y, w))
 
 
@@ -99,10 +99,11 @@ def build_glb(scene, assets, config) -> bytes:
     veg_ids = [str(a) for a in veg.asset_id] if veg is not None else []
     asset_ids = list(dict.fromkeys([o.asset_id for o in scene.objects] + veg_ids))
     names = unique_names(asset_ids)
-    amat = vertex_colour_material(b) if asset_ids else None
     mesh_of: dict[str, int] = {}
-    for aid in asset_ids:
-        mesh_of[aid] = add_asset_mesh(b, names[aid], assets.mesh(aid), amat)
+    if asset_ids:
+        amat = vertex_colour_material(b)
+        for aid in asset_ids:
+            mesh_of[aid] = add_asset_mesh(b, names[aid], assets.mesh(aid), amat)
 
     # labels from the scene's label table (instances.json): the same ids and HoloOcean labels as every export
     objs = b.node({"name": "objects"}, root)

@@ -127,7 +127,8 @@ def _pick(score: np.ndarray, ok: np.ndarray) -> tuple[int, int] | None:
     if not ok.any():
         return None
     s = np.where(ok, score, -np.inf)
-    return np.unravel_index(int(np.argmax(s)), s.shape)
+    r, c = np.unravel_index(int(np.argmax(s)), s.shape)
+    return int(r), int(c)
 
 
 def place_agents(scene, grid_px: int = 128):

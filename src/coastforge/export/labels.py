@@ -120,8 +120,8 @@ def instances_table(scene) -> dict[str, Any]:
     veg = scene.vegetation
     counts: dict[str, int] = {}
     for c, a in (zip(veg.category, veg.asset_id) if veg is not None else ()):
-        k = object_class(str(c), str(a))
-        counts[k] = counts.get(k, 0) + 1
+        name = object_class(str(c), str(a))
+        counts[name] = counts.get(name, 0) + 1
     vegetation = [{"class": k, "class_id": class_id(k), "holoocean": OBJECT_LABELS[k],
                    "holoocean_id": HOLOOCEAN_LABELS[OBJECT_LABELS[k]], "count": n} for k, n in sorted(counts.items())]
     return {"format": FORMAT, "scene": scene.name, "instance_id_none": 0, "classes": classes, "objects": objects,
@@ -149,5 +149,14 @@ def instances_json(scene) -> bytes:
     return (json.dumps(instances_table(scene), indent=2, ensure_ascii=False, allow_nan=False) + "\n").encode("utf-8")
 
 
-__all__ = ["instances_table", "instances_json", "labels_by_id", "vegetation_label", "HOLOOCEAN_LABELS", "FLOAT_TAG",
-           "is_floating", "object_class", "object_label"]
+__all__ = [
+    "FLOAT_TAG",
+    "HOLOOCEAN_LABELS",
+    "instances_json",
+    "instances_table",
+    "is_floating",
+    "labels_by_id",
+    "object_class",
+    "object_label",
+    "vegetation_label",
+]

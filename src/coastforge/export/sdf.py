@@ -165,5 +165,5 @@ def export_sdf(scene, assets, config) -> dict[str, bytes]:
         "calls it `ignition-gazebo-label-system`) with the HoloOcean stencil value of its label, so a segmentation "
         "camera here and HoloOcean's semantic camera give the same numbers; `<coastforge:instance>` carries the "
         "object's instance id and class from `../instances.json`.\n"
-    ).encode("utf-8")
+    ).encode()
     return files

@@ -136,7 +136,7 @@ def class_weight_maps_u8(scene, nx: int, ny: int, keep=()) -> tuple[np.ndarray, 
     best = np.full((ny, nx), -1.0, np.float32)
     dom = np.zeros((ny, nx), np.uint8)
     kept: dict = {}
-    present = set(int(k) for k in np.unique(scene.classes))
+    present = {int(k) for k in np.unique(scene.classes)}
     for k in range(N_CLASSES):
         if k not in present:
             if k in keep:

@@ -315,4 +315,4 @@ def export_ue5(scene, assets, config) -> dict[str, bytes]:
     return files
 
 
-__all__ = ["export_ue5", "landscape_size", "encode_heights", "decode_heights", "scale_z_for", "LANDSCAPE_SIZES"]
+__all__ = ["LANDSCAPE_SIZES", "decode_heights", "encode_heights", "export_ue5", "landscape_size", "scale_z_for"]

@@ -27,7 +27,7 @@ class BuildStopped(Exception):
 
 
 def load_spec(path):
-    with open(path, "r", encoding="utf-8") as fh:
+    with open(path, encoding="utf-8") as fh:
         spec = json.load(fh)
     if not isinstance(spec, dict) or spec.get("format") != FORMAT:
         raise BuildStopped("%s is not a coastforge level file (format %r, expected %r)"
@@ -396,7 +396,7 @@ def main(argv=None):
         unreal = None
         if not dry:
             try:
-                import unreal  # noqa: F811  (only inside the Unreal Editor)
+                import unreal  # only inside the Unreal Editor
             except ImportError:
                 print("This script runs inside the Unreal Editor (Python Editor Script Plugin). "
                       "Use --dry-run to preview it here.")

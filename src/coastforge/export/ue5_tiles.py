@@ -154,4 +154,4 @@ def export_ue5_tiles(scene, assets=None, config=None, tile_size: int = DEFAULT_T
     return files
 
 
-__all__ = ["export_ue5_tiles", "tile_name", "tile_counts", "DEFAULT_TILE_SIZE"]
+__all__ = ["DEFAULT_TILE_SIZE", "export_ue5_tiles", "tile_counts", "tile_name"]

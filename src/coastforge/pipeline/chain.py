@@ -9,10 +9,12 @@ scene's provenance; side work runs beside the chain (``runtime``).
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
 
@@ -215,7 +217,7 @@ def _stages(front: FrontEnd, req: GenerateRequest, config: Config, out: Path, ti
                           report_path, warnings)
 
 
-def _with_timings(scene: Scene, timings: dict, timer: Timer, bg: "Background") -> Scene:
+def _with_timings(scene: Scene, timings: dict, timer: Timer, bg: Background) -> Scene:
     """The scene with its stage timings and what ran beside the main chain (CPU contention makes the stages
     slower by about that much) in its provenance."""
     return replace(scene, provenance={**scene.provenance, "timings_s": dict(timings),
@@ -237,10 +239,9 @@ def _report_terrain(ids: np.ndarray, z_m: np.ndarray, grid, seed: int):
 def _load_meshes(library, asset_ids) -> None:
     """Load these assets' meshes into the library's cache (the report's render and 3D preview use them)."""
     for aid in dict.fromkeys(asset_ids):
-        try:
+        # any error: the report falls back on its own for a mesh that will not load
+        with contextlib.suppress(Exception):
             library.mesh(aid)
-        except Exception:  # noqa: BLE001 - the report falls back on its own for a mesh that will not load
-            pass
 
 
 # what the report waits for (``report.build_report``'s ``wait(part)``): the background job making it

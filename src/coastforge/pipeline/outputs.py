@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .chain import FrontEnd
 
 
-def write_scene_files(bg: "Background", out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
+def write_scene_files(bg: Background, out: Path, req: GenerateRequest, seed: int, grid, transform, height: HeightMap,
                       class_map: ClassMap, objects, veg, provenance: dict, pending: tuple[Job, ...] = ()) -> Scene:
     """The scene of a finished chain; its vegetation masks and rasters written (the JSON comes last, from the
     caller, once timings are known). ``transform`` is the scene rasters' (coarser than the input when a tiled

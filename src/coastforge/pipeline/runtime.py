@@ -13,7 +13,11 @@ import threading
 import time
 from contextlib import contextmanager
 from enum import Enum
-from typing import Callable, Iterable
+from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Iterable
+
+if TYPE_CHECKING:
+    from concurrent.futures import Future
 
 # images at least this big (pixels) get a side process; below, its start-up costs more than it saves
 SIDE_PROCESS_MIN_PX = 1_500_000
@@ -34,7 +38,7 @@ class Job(str, Enum):
     PCG = "pcg"  # the vegetation masks
 
     @classmethod
-    def of(cls, name: "Job | str") -> "Job":
+    def of(cls, name: Job | str) -> Job:
         """``name`` as a ``Job``; an unknown name raises ``ValueError`` naming the known ones."""
         try:
             return cls(name)
@@ -77,7 +81,7 @@ class Background:
         # the chain's work (and the side process's): they fill its idle moments instead of slowing it
         self._low = ThreadPoolExecutor(max_workers=low_workers, thread_name_prefix="coastforge-bg-low",
                                        initializer=lower_thread_priority)
-        self._jobs: dict[Job, object] = {}
+        self._jobs: dict[Job, Future[Any]] = {}
         self._t: dict[str, dict] = {}
 
     def __enter__(self):
@@ -143,7 +147,7 @@ class SideProcess:
         self._futures: list = []
 
     @classmethod
-    def start(cls, n_px: int, warm_up: Callable[[], None] | None = None) -> "SideProcess | None":
+    def start(cls, n_px: int, warm_up: Callable[[], None] | None = None) -> SideProcess | None:
         """A side process for an image of ``n_px`` pixels, or None; ``warm_up`` (a module-level function)
         runs in it first (its imports, while the main process starts on the chain)."""
         import multiprocessing

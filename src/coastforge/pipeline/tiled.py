@@ -58,7 +58,7 @@ class TiledImage:
 
     @classmethod
     def open(cls, req, config: Config, tile_px: int = 2048, overlap_px: int = 256,
-             scene_max_px: int = 4096) -> "TiledImage":
+             scene_max_px: int = 4096) -> TiledImage:
         """Open and check ``req.image`` (``open_source``), check the run's memory and read the preview."""
         from ..io import check_memory
 

@@ -23,7 +23,7 @@ import math
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -159,9 +159,7 @@ def read_window(path: str | Path | Source, window, source: Source | None = None)
     import rasterio
     from rasterio.windows import Window
 
-    if isinstance(path, Source):
-        source = path
-    src_info = source or open_source(path)
+    src_info = path if isinstance(path, Source) else (source or open_source(path))
     win = window.window if isinstance(window, Tile) else window
     if not isinstance(win, Window):
         raise InputError(f"read_window needs a Tile or a rasterio Window, got {type(window).__name__}")
@@ -231,6 +229,7 @@ def segment_tiled(path, grid: Grid | None = None, config: SegmentConfig | None =
     src = _source(path, grid, source)
     cfg = config or SegmentConfig()
     W, H = src.grid.width_px, src.grid.height_px
+    ids: np.ndarray
     if out is not None:
         ids = np.lib.format.open_memmap(str(out), mode="w+", dtype=np.uint8, shape=(H, W))
     else:
@@ -363,7 +362,7 @@ def _merge_fragment_group(dets: list[Detection], angle_tol_deg: float) -> list[D
                 b = pending[b_i]
                 if b.category != a.category:
                     continue
-                if abs(wrap_half_deg(a.yaw_deg - b.yaw_deg)) > angle_tol_deg:
+                if abs(float(wrap_half_deg(a.yaw_deg - b.yaw_deg))) > angle_tol_deg:
                     continue
                 a0, a1, _ = _axis_extent(a, ux, uy, a.cx_px, a.cy_px)
                 b0, b1, lat = _axis_extent(b, ux, uy, a.cx_px, a.cy_px)

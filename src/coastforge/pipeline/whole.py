@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -21,7 +21,7 @@ class WholeImage:
     image: GeoImage
 
     @classmethod
-    def read(cls, req: GenerateRequest, config: Config) -> "WholeImage":
+    def read(cls, req: GenerateRequest, config: Config) -> WholeImage:
         from ..io import read_image
 
         return cls(read_image(req.image, req.gsd_m, req.size_m, config.io, stages=config))
@@ -65,8 +65,10 @@ class WholeImage:
 
             opts["classical_dets"] = side.submit(classical_part, self.image, class_map, config.detect, config.seed)
         side_queued()
-        return detect(self.image, config.detect, class_map=class_map, seed=config.seed, return_class_map=True,
-                      **opts)
+        dets, cm, notes = detect(self.image, config.detect, class_map=class_map, seed=config.seed,
+                                 return_class_map=True, **opts)
+        assert cm is not None  # a class map in, a (reconciled) class map out
+        return dets, cm, notes
 
     def to_scene_grid(self, class_map: ClassMap, dets: list[Detection],
                       config: Config) -> tuple[ClassMap, list[Detection], dict]:

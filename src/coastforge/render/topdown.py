@@ -351,7 +351,7 @@ def render_terrain_layer(
     seed: int = 0,
     water_level_m: float = 0.0,
     instances: Sequence[MeshInstance] | None = None,
-) -> "TerrainLayer | tuple[TerrainLayer, list]":
+) -> TerrainLayer | tuple[TerrainLayer, list]:
     """The shaded terrain seen from straight above (see ``render_topdown``). With ``instances``, their
     objects and shadows are rendered beside it (a second thread) and returned with it."""
     gsd = _check_gsd(gsd_m)

@@ -10,4 +10,4 @@ from .inputs import match_objects_to_decisions
 from .page import SECTION_FAILED, SECTIONS, TITLES, build_report
 from .previews import top_gsd
 
-__all__ = ["SECTION_FAILED", "SECTIONS", "TITLES", "build_report", "match_objects_to_decisions", "top_gsd"]
+__all__ = ["SECTIONS", "SECTION_FAILED", "TITLES", "build_report", "match_objects_to_decisions", "top_gsd"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import base64
 import html
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -87,7 +87,7 @@ def hillshade_figure(scene: Scene, sections: list[dict]) -> str:
     relief = data_uri(hillshade_rgb(zs, grid.gsd_m * step, max_depth_m=dmax), quality=88)
     ml, mt, pw = 64.0, 34.0, 560.0
     ph = float(np.clip(pw * h / w, 200.0, 900.0))
-    axes, sx, sy = svg_axes(ml, mt, pw, ph, (-w / 2, w / 2), (-h / 2, h / 2), "x east (m)", "y north (m)",
+    axes, _sx, _sy = svg_axes(ml, mt, pw, ph, (-w / 2, w / 2), (-h / 2, h / 2), "x east (m)", "y north (m)",
                              f"Height map (shaded relief): {float(z.min()):.1f} m to {float(z.max()):.1f} m")
     body = [f'<image x="{ml}" y="{mt}" width="{pw}" height="{ph:.1f}" preserveAspectRatio="none" '
             f'href="{relief}" xlink:href="{relief}"/>', axes]

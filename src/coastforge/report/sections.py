@@ -293,11 +293,11 @@ def piers_section(scene: Scene, base: np.ndarray | None) -> str:
     cmap = [(31, 119, 180), (44, 160, 44), (148, 103, 189), (23, 190, 207), (188, 189, 34), (140, 86, 75),
             (227, 119, 194), (127, 127, 127), (255, 127, 14)]
     fill = canvas.copy()
-    for i, (o, p) in enumerate(zip(piers, polys)):
+    for i, (_o, p) in enumerate(zip(piers, polys)):
         pts = np.round(px(p)).astype(np.int32)
         cv2.fillPoly(fill, [pts], cmap[sid[root(i)] % len(cmap)])
     canvas = cv2.addWeighted(fill, 0.75, canvas, 0.25, 0)
-    for i, (o, p) in enumerate(zip(piers, polys)):
+    for o, p in zip(piers, polys):
         pts = np.round(px(p)).astype(np.int32)
         cv2.polylines(canvas, [pts], True, (220, 30, 30) if o.id in bad else (20, 20, 20),
                       3 if o.id in bad else 1,
@@ -349,7 +349,7 @@ def vegetation_section(scene: Scene) -> str:
     ri = np.clip(np.asarray(row, float).astype(int), 0, grid.height_px - 1)
     cls = scene.classes[ri, ci]
     area = np.bincount(scene.classes.ravel(), minlength=N_CLASSES) * grid.gsd_m ** 2
-    cats = sorted(set(str(a) for a in v.category))
+    cats = sorted({str(a) for a in v.category})
     dens = {}
     rows = []
     for c in range(N_CLASSES):

@@ -20,7 +20,7 @@ from ..config import Config, SegmentConfig
 from ..errors import InputError
 from ..types import ClassMap, GeoImage
 
-__all__ = ["Segmenter", "segment", "segment_file", "check_class_map"]
+__all__ = ["Segmenter", "check_class_map", "segment", "segment_file"]
 
 
 @runtime_checkable

@@ -269,7 +269,7 @@ def close_water(water: np.ndarray, F: Features, cfg: SegmentConfig, veg: np.ndar
     A blob cut by the image border counts as enclosed when most of its outline is water: pier clusters
     often run off the edge of a crop."""
     gsd = F.gsd_m
-    h, w = water.shape
+    _h, _w = water.shape
     r = cfg.water_close_m / gsd
     if r >= 0.75:
         closed = cv2.morphologyEx(water.astype(np.uint8), cv2.MORPH_CLOSE, disk(r),

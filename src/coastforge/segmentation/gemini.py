@@ -159,4 +159,4 @@ class GeminiSegmenter:
         return ClassMap(ids=ids, grid=image.grid)
 
 
-__all__ = ["GeminiSegmenter", "parse_class_image", "first_image", "class_prompt", "CLEAN_PROMPT"]
+__all__ = ["CLEAN_PROMPT", "GeminiSegmenter", "class_prompt", "first_image", "parse_class_image"]

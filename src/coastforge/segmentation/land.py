@@ -142,7 +142,7 @@ def land_seeds(F: Features, water: np.ndarray, rocks_shore_m: float = 0.0,
     }
     seeds = np.full(L.shape, -1, np.int8)
     count = np.zeros(L.shape, np.uint8)
-    for cid, m in rules.items():
+    for m in rules.values():
         count += m
     for cid, m in rules.items():
         seeds[m & (count == 1)] = cid

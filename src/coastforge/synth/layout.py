@@ -9,6 +9,7 @@ for object checks agree.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -413,7 +414,7 @@ def add_pier(layout: Layout, spec: PierSpec, structure: str, rng: np.random.Gene
         if not tl:
             continue
         edges = [tl[0] - spec.pitch] + tl + [tl[-1] + spec.pitch]
-        for ta, tb in zip(edges[:-1], edges[1:]):
+        for ta, tb in itertools.pairwise(edges):
             if tb - ta > spec.pitch * 1.5 or rng.random() > spec.occupancy:
                 continue
             ta_, tb_ = ta + spec.finger_w / 2, tb - spec.finger_w / 2

@@ -8,7 +8,7 @@ occupancy, mooring habits), so every seed gives a different level of the same ki
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from shapely.geometry import LineString, Point
@@ -35,7 +35,7 @@ def shore_curve(rng: np.random.Generator, R: float, v0: float, amp: float, wl: f
     """A smooth shoreline v(u): a few sinusoids of decreasing amplitude and wavelength."""
     us = np.arange(-R - 40.0, R + 40.0, 0.5)
     vs = v0 + slope * us
-    for k, (a, f) in enumerate(((1.0, 1.0), (0.4, 0.45), (0.15, 0.2))):
+    for a, f in ((1.0, 1.0), (0.4, 0.45), (0.15, 0.2)):
         vs = vs + amp * a * np.sin(2 * math.pi * us / (wl * f) + rng.uniform(0, 2 * math.pi))
     return us, vs
 
@@ -162,7 +162,7 @@ def simple_pier_a(L: Layout, rng: np.random.Generator, S: float) -> dict:
 
 def simple_pier_b(L: Layout, rng: np.random.Generator, S: float) -> dict:
     _base_land(L, rng, trees=int(rng.integers(2, 6)), tree_r=(4, 10), setback=10.0)
-    u_lo, u_hi = L.shore_span(5.0)
+    _u_lo, _u_hi = L.shore_span(5.0)
     qa, qb = float(rng.uniform(-0.35, -0.15) * S), float(rng.uniform(0.15, 0.35) * S)
     quay_w = float(rng.uniform(3.0, 6.0))
     L.paint(L.band_along_shore(-L.R, L.R, -0.5, float(rng.uniform(3, 6)), wobble=1.0), ROCKS, z=3.5)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from ..types import Grid
 DEM_MAX_ABS_M = 12_000.0
 
 
-def check_dem_files(specs: Sequence) -> list["DemSource"]:
+def check_dem_files(specs: Sequence) -> list[DemSource]:
     """The parsed ``--dem`` specs; an ``InputError`` for one whose file is missing or a folder (before any
     work is done)."""
     out = [DemSource.parse(spec) for spec in specs]
@@ -44,7 +44,7 @@ class DemSource:
     scale: float = 1.0  # e.g. 0.3048 for a DEM in feet
 
     @staticmethod
-    def parse(spec: "str | Path | DemSource") -> "DemSource":
+    def parse(spec: str | Path | DemSource) -> DemSource:
         """``FILE``, ``FILE:offset=-0.3`` or ``FILE:offset=-0.3,scale=0.3048``."""
         if isinstance(spec, DemSource):
             return spec
@@ -118,7 +118,7 @@ def scene_georeference(grid: Grid, placement: Placement | None = None):
     try:
         crs = CRS.from_user_input(grid.crs)
     except CRSError as exc:
-        raise InputError(f"the scene's crs {grid.crs!r} is not readable ({exc}); give --dem-crs/--dem-origin")
+        raise InputError(f"the scene's crs {grid.crs!r} is not readable ({exc}); give --dem-crs/--dem-origin") from exc
     return crs, Affine(*grid.transform)
 
 

@@ -92,10 +92,7 @@ class OnnxTerrain:
         if image is not None:
             rgb = np.ascontiguousarray(np.moveaxis(image.rgb.astype(np.float32) / 255.0, -1, 0)[None])
         th, tw = self.fixed or (min(self.tile_px, h), min(self.tile_px, w))
-        if (th, tw) == (h, w):
-            z = self._run(onehot, rgb)
-        else:
-            z = self._tiled(onehot, rgb, th, tw)
+        z = self._run(onehot, rgb) if (th, tw) == (h, w) else self._tiled(onehot, rgb, th, tw)
         if self.enforce_classes:
             water = ids == WATER
             z = np.where(water, np.minimum(z, -0.01), np.maximum(z, 0.01))

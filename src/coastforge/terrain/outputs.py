@@ -130,7 +130,7 @@ def cross_section_plot(sections, width_px: int = 900, height_px: int = 450,
         if engine == "matplotlib":
             from ..errors import BackendUnavailable
 
-            raise BackendUnavailable("the matplotlib plot engine needs matplotlib; pip install matplotlib")
+            raise BackendUnavailable("the matplotlib plot engine needs matplotlib; pip install matplotlib") from None
         return _plot_cv2(sections, width_px, height_px)
     fig, ax = plt.subplots(figsize=(width_px / 100, height_px / 100), dpi=100)
     try:

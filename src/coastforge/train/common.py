@@ -9,6 +9,7 @@ writes per level.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import time
@@ -133,7 +134,7 @@ def init_from_onnx(torch, net, onnx_path: Path, make_input: Callable[[int], Any]
     for seq in net.modules():
         if isinstance(seq, nn.Sequential):
             mods = list(seq)
-            for a, b in zip(mods, mods[1:]):
+            for a, b in itertools.pairwise(mods):
                 if isinstance(a, nn.Conv2d) and isinstance(b, nn.BatchNorm2d):
                     bn_after[a] = b
     folded_bias: dict[nn.Conv2d, torch.Tensor] = {}

@@ -75,7 +75,7 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
     if looks == "varied":
         level = vary_looks(level, stage_rng(seed, "train", "detector_data", "looks"))
     rgb = render_level(level, mesh_source(library), gsd_m, seed)
-    sx, sy = level.scene.extent_m
+    sx, _sy = level.scene.extent_m
     work, _ = resample_to_gsd(rgb, sx / rgb.shape[1], work_gsd_m)
     h, w = work.shape[:2]
     g = sx / w

@@ -31,7 +31,7 @@ def _row(s) -> dict:
 
     return {"n_truth": s.n_truth, "n_pred": s.n_pred, "recall": r(s.recall), "precision": r(s.precision),
             "orient_rmse_deg": r(s.orient_rmse), "heading_acc": r(s.heading_acc),
-            **{k: v for k, v in s.extra.items()}}
+            **s.extra}
 
 
 def evaluate(backend: str, weights: str | None, data: Path | None, work: Path) -> dict:
@@ -93,7 +93,7 @@ def tune_thresholds(weights: str | None, data_dir: Path, n_levels: int = 40) -> 
                 match(truth, [d for d in dets if d.category == c and d.score >= t], scores[(c, t)])
     out = {}
     for c in classes:
-        def f1(t):
+        def f1(t, c=c):
             s = scores[(c, t)]
             p, r = s.matched / max(1, s.n_pred), s.matched / max(1, s.n_truth)
             return 2 * p * r / max(1e-9, p + r)

@@ -213,7 +213,7 @@ def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.nd
         img = img + rng.normal(0, rng.uniform(1, 7), img.shape).astype(np.float32)
     img = np.clip(img, 0, 255)
     if rng.random() < 0.3:
-        ok, buf = cv2.imencode(".jpg", img.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 90))])
+        _ok, buf = cv2.imencode(".jpg", img.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(35, 90))])
         img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED).astype(np.float32)
     return img
 

@@ -315,7 +315,7 @@ def export_onnx(net, path: Path) -> Path:
     return path
 
 
-def init_from_onnx(torch, net, onnx_path: Path, sampler: "Sampler", batches: int = 24) -> float:
+def init_from_onnx(torch, net, onnx_path: Path, sampler: Sampler, batches: int = 24) -> float:
     """Start ``net`` from an exported ``detector.onnx`` (e.g. the shipped model, whose torch checkpoint is
     not kept): ``common.init_from_onnx`` on batches of training crops. Returns the largest output
     difference to the ONNX model on a crop (checked: the network computes what the model does)."""

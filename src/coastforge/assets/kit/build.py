@@ -12,7 +12,7 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 from ...errors import CoastforgeError
 from ...fsio import atomic_write_bytes, atomic_write_text, prepare_output_dir

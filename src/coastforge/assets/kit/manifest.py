@@ -104,7 +104,7 @@ def load_kit_mesh(asset_id: str):
     return _load_cached(asset_id).copy()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _load_cached(asset_id: str):
     return load_glb_mesh(kit_asset(asset_id).mesh_path)
 

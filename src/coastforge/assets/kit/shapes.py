@@ -3,7 +3,7 @@ convex hulls), outlines, and ``Model``, the pieces of one model grouped by colou
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

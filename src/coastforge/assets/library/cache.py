@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
@@ -58,10 +59,8 @@ def default_library(config: LibraryConfig = LibraryConfig()) -> Library:
                 Library.load(root)
             except LibraryError:  # the corrupted cache we could not load: replace it
                 shutil.rmtree(root, ignore_errors=True)
-        try:
+        with contextlib.suppress(OSError):
             os.rename(tmp, root)
-        except OSError:
-            pass
         shutil.rmtree(tmp, ignore_errors=True)
         lib = Library.load(root)
     _DEFAULT[key] = lib

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -108,7 +108,7 @@ def ingest_mesh(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | None)
         return {"error": str(exc)}
     except OSError as exc:
         return os_failure(spec, exc)
-    except Exception as exc:  # a broken model must not take the other assets down
+    except Exception as exc:  # noqa: BLE001 - a broken model must not take the other assets down
         return {"error": f"asset {spec.id!r}: {type(exc).__name__}: {exc}"}
 
 

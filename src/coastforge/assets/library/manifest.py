@@ -9,7 +9,8 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 from ...classes import ASSET_CATEGORIES
 from ...errors import LibraryError
@@ -208,7 +209,7 @@ def scan_folder(src: Path) -> tuple[list[AssetSpec], list[SkippedAsset]]:
         aid = re.sub(r"[^A-Za-z0-9_.\-]", "_", f.stem).strip("._-")[:100] or "asset"
         if not aid[0].isalnum():
             aid = "a" + aid
-        folders = [p for p in f.relative_to(src).parent.parts]
+        folders = list(f.relative_to(src).parent.parts)
         cat, why = guess_category(f.stem, folders)
         if aid in seen:
             skipped.append(SkippedAsset(aid, f"asset {aid!r}: duplicate id from {f} and {seen[aid]}; rename one "

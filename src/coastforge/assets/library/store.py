@@ -6,7 +6,8 @@ import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -83,7 +84,7 @@ class Library:
     # -- loading
     @classmethod
     def load(cls, path: str | Path, embedder: str | None = None, weights: str | Path | None = None,
-             check_files: bool = True) -> "Library":
+             check_files: bool = True) -> Library:
         """Open a library folder (or its library.json). ``embedder`` (a name) must match the one it was built
         with; ``weights`` overrides the recorded weights folder of a weights-based embedder. ``check_files``:
         refuse a library missing a file it lists (a view, a silhouette, a model copy)."""
@@ -105,7 +106,7 @@ class Library:
             emb = doc["embedder"]
             assets, row_asset = [], []
             for i, a in enumerate(doc["assets"]):
-                start, count = a["index_rows"]
+                _start, count = a["index_rows"]
                 row_asset.extend([i] * int(count))
                 assets.append(_record_from_json(root, a))
             idx_info = doc["index"]
@@ -268,9 +269,7 @@ class Library:
     # most evidence, sum over its assets of exp((cosine - best) / T) (the category's posterior when every
     # asset is a priori as likely and exp(cosine / T) is its likelihood), not the category of the single
     # best asset, which a lone look-alike of another category can take. 0 turns it off. T tuned on the
-    # retrieval benchmark (python -m coastforge.bench.library, seeds 0-2; 3-4 held out), with embedder v5:
-    # category misses of rendered queries 67 -> 62 of 1980 (seeds 0-4; 0 and 1 lose 2 each, 2-4 gain), of
-    # crops of the synthetic scenes 259 -> 208 of 742 (every seed gains). T is in units of the default
+    # retrieval benchmark, seeds 0-2, 3-4 held out (figures: docs/benchmarks.md). T is in units of the default
     # embedder's cosine; libraries of other embedders keep the plain ranking until T is calibrated for them.
     CATEGORY_VOTE_T = 0.03
     CATEGORY_VOTE_EMBEDDERS = ("default",)

@@ -126,5 +126,5 @@ def ingest_thumbnail(spec: AssetSpec, out: str, cfg: dict, want_vectors: dict | 
         return {"error": str(exc)}
     except OSError as exc:
         return os_failure(spec, exc)
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 - one asset's broken thumbnail must not take the others down
         return {"error": f"asset {spec.id!r}: {type(exc).__name__}: {exc}"}

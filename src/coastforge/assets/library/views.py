@@ -8,7 +8,8 @@ import dataclasses
 import hashlib
 import math
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -38,7 +39,7 @@ def view_settings(config: LibraryConfig) -> dict:
     return {
         "size_px": int(config.view_size_px), "base_gsd_m": float(config.view_gsd_m),
         "backgrounds": list(config.backgrounds), "lightings": int(config.lightings),
-        "lighting_params": [dataclasses.asdict(l) for l in view_lightings()[: config.lightings]],
+        "lighting_params": [dataclasses.asdict(lt) for lt in view_lightings()[: config.lightings]],
         "renderer": _render_source_hash(),
         "paint_variants": bool(config.paint_variants), "paints": [list(p) for p in PAINTS],
         "silhouette": 1,  # footprint masks stored beside the views
