@@ -55,8 +55,8 @@ RESTORE_DARK = True  # shadow-like pixels inside the object's convex hull are ob
 DROP_EDGE_PARTS = True  # drop mask parts off the crop's central half that leave the crop (foam, wakes)
 # A cast shadow is lit by the sky only, so it is a darker copy of the ground that is at most a little bluer:
 # in renders of 33 lightings (30 random, the 3 library ones) on water and ground, its blue ratio was 0.81 to
-# 1.13 x its red/green ratio. A looser bound (it was 1.6) also calls a navy car on dark ground a shadow and
-# leaves only its windscreen as the object (retrieval benchmark: suv -> rock_medium).
+# 1.13 x its red/green ratio. A looser bound also calls a navy car on dark ground a shadow and leaves only
+# its windscreen as the object (docs/benchmarks.md).
 SHADOW_BLUE_MAX = 1.25
 # speckle (glints, noise) = foreground parts smaller than this many pixels at the work size; removed by area,
 # not by an opening, which also erased thin rims (the 1-2 px white rim of a hull on light ground)
@@ -65,8 +65,8 @@ CENTRE_FRAC = 0.1  # the crop's centre: a square of +- this fraction of its side
 # sun glints on water (see ``_glint_mask``): near-neutral pixels GLINT_DL brighter in L* than the ring's
 # median (chroma below GLINT_CHROMA) and GLINT_TOPHAT brighter than a GLINT_PX opening, where at least
 # GLINT_RING_SHARE of the ring shows them and the ring is otherwise plain (clutter share at most
-# GLINT_MAX_CLUTTER: the white lines and roofs of a car park are not glitter). Rendered queries, seeds 0-9:
-# 60 -> 53 category misses (piers and buses on glittering water had glints in their masks)
+# GLINT_MAX_CLUTTER: the white lines and roofs of a car park are not glitter); piers and buses on glittering
+# water had glints in their masks (docs/benchmarks.md)
 GLINTS = True
 GLINT_DL, GLINT_CHROMA, GLINT_TOPHAT = 20.0, 20.0, 15.0
 GLINT_PX = 7
@@ -78,39 +78,33 @@ MIN_MASK_PX = 1  # a smaller mask falls back to the central disc (a tiny object 
 # this block also loses cosine against queries without it, so it must stay off at the sizes paint views have).
 # Lab, not a ratio to the background per RGB channel: on dark water a ratio of the red channel explodes and
 # drowns the hue, and a difference of Lab (about perceptual, like the sRGB averaging of a coarse sensor or a
-# resize) is about conserved when pixels are averaged (retrieval benchmark, seed 0: category 0.939 -> 0.962)
+# resize) is about conserved when pixels are averaged (docs/benchmarks.md)
 CONTRAST_A0 = (0.05, 0.02, 0.02)  # L*, a*, b* units x m^2
 CONTRAST_BINS = 48
 CONTRAST_FULL_PX = 8.0
 SIZE_PX_UNCERTAINTY = 1.0  # the size code widens by this many pixels' relative error (tiny objects)
 # the contrast's direction: the unit vector of the integrated contrast (L*, a*, b*), each component
 # soft-binned. Its length mixes the object's colour with how much of its pixels it covers (a sparse tuft of
-# blades, a solid clump); the direction is the colour alone (retrieval benchmark, with the random-lit
-# query-like views: category misses of seeds 0-4 / 5-9 54 / 54 -> 46 / 53 of 1980 each; 43 / 34 -> 40 / 33
-# with the edge extent)
+# blades, a solid clump); the direction is the colour alone (docs/benchmarks.md)
 CONTRAST_DIR_BINS = 24
 # edge extent: gradient energy (Lab, a* and b* at half weight) above this quantile of the crop ring's is the
 # object's (its outline, its parts, its cast shadow); the radii holding 50 % and 85 % of it, soft-binned over
-# log metres. The quantile keeps the ground's grain and the water's glitter out (0.5 -> 0.9: misses 47 / 39 ->
-# 40 / 33). It is what still measures a catamaran on light ground when the mask holds only its dark cabin (46
-# / 53 -> 40 / 33)
+# log metres. The quantile keeps the ground's grain and the water's glitter out. It is what still measures a
+# catamaran on light ground when the mask holds only its dark cabin (docs/benchmarks.md)
 EDGE_QUANTILE = 0.9
 EDGE_BINS = 48
 # ring clutter: the share of the crop's ring farther than CLUTTER_DL (Lab) from its median colour,
 # soft-binned. An isolated object's ring is plain background; around a car in a row or a boat in a berth,
 # neighbours cut it. With the library's crowded views (LibraryConfig.crowded_views) it sends a crowded crop to
-# crowded views and an isolated one to isolated views. Rendered isolated queries (seeds 0-9), category
-# misses: 63 without crowded views; with 3 per GSD, 71 without this block (crowds of small cars drew isolated
-# buses and box trucks), 65 / 68 with it at weight 0.7 / 1.0 (1.5 spoils the real crops: 0.95 -> 0.76); with
-# 2 per GSD, weight 0.7 and sigma 0.05 (kept): 61
+# crowded views and an isolated one to isolated views (without it, crowds of small cars drew isolated buses
+# and box trucks; a high weight spoils the real crops: docs/benchmarks.md)
 CLUTTER_DL = 12.0
 CLUTTER_BINS = 21
 CLUTTER_SIGMA = 0.05
 # the background's colour (the ring's median Lab), faded in with the clutter (full from this share): an
 # isolated object may lie on any ground in a query and the library renders every asset on water and on
 # ground, but a crowded crop shows where it is (a car park, a marina) and the crowded views are rendered there
-# (cars on ground, boats on water). Synthetic-scene crops: category 0.845 -> 0.879; rendered isolated queries
-# 61 -> 60 misses; real crops unchanged (0.954). Ungated (at 0.5) it cost the isolated queries 7 misses
+# (cars on ground, boats on water). Ungated it cost the isolated queries misses (docs/benchmarks.md)
 BG_FULL = 0.2
 
 
@@ -495,9 +489,8 @@ class DefaultEmbedder:
 
     name = "default"
 
-    # Block weights (relative importance in the inner product); tuned on the retrieval benchmark. The size
-    # from the mask counts half since the edge extent also measures the object (misses 40 / 33 -> 40 / 25 of
-    # seeds 0-4 / 5-9, asset misses 61 / 60 -> 53 / 43)
+    # Block weights (relative importance in the inner product); tuned on the retrieval benchmark
+    # (docs/benchmarks.md). The size from the mask counts half since the edge extent also measures the object
     WEIGHTS: ClassVar[dict[str, float]] = {
         "size": 0.5, "colour_ab": 1.5, "colour_l": 0.5, "layout": 1.2,
         "shape": 0.6, "profile": 0.6, "radial": 0.6, "hog": 0.9, "lbp": 0.4, "contrast": 1.5,

@@ -223,9 +223,7 @@ class LearnedDetector:
         """Each boat's long axis (``TTA_CATEGORIES``) as the score-weighted mean (of 2θ) of the tile's pass
         and the network run on a crop around it turned by 90, 180 and 270°. The turns are lossless, and the
         crop puts the object at another place on the network's stride-4 grid than its tile did: one pass's
-        axis moves by a few degrees with both (synthetic boats at 0.2 m/px, net alone: axis RMSE 2.5° for
-        one pass, 1.5° for the mean of four, on seeds 0-2 and on seeds 3-4; median 1.2-1.6° -> 0.8-0.9°).
-        The front stays on the side the detector chose. ``work`` is the image at the working GSD, ``sx``,
+        axis moves by a few degrees with both, the mean of four much less (docs/benchmarks.md). The front stays on the side the detector chose. ``work`` is the image at the working GSD, ``sx``,
         ``sy`` its scale from the detections' pixels."""
         import cv2
 

@@ -480,10 +480,8 @@ def align_with_neighbours(dets: list[Detection], clear: list[float | None]) -> l
     ``ROW_MIN_TURN_DEG`` from the axes of at least ``ROW_MIN_N`` clear neighbours (``ROW_CLEAR``;
     centres within ``ROW_REACH`` times the shorter one's length: a dinghy 10 m from a yacht is not
     moored beside it; axes within ``ROW_MAX_DEG`` of its own and within ``ROW_AGREE_DEG`` of each other)
-    takes their mean axis, its front kept. Rare by design: on synthetic seeds 0-4 (both resolutions) it
-    turns one boat (a 4.6 m boat at 0.2 m/px, 8.2° -> 0.6° off), on the real marina one (4.6° -> 2.4°).
-    Reaching 3 x the longer one's length had also turned a free dinghy 12 m from a yacht 21° -> 29° off
-    (with the previous net: a sailboat on the real marina 80° -> 85°)."""
+    takes their mean axis, its front kept. Rare by design (docs/benchmarks.md): a longer reach also turned
+    free dinghies near yachts."""
     boats = [i for i, d in enumerate(dets) if d.category == "boat" and clear[i] is not None]
     if len(boats) < 1 + ROW_MIN_N:
         return dets
