@@ -28,6 +28,7 @@ from coastforge.classes import ASPHALT, GRASS, WATER
 from coastforge.config import Config, _flat
 from coastforge.errors import CoastforgeError
 from coastforge.types import ClassMap, Detection, GeoImage, Grid
+from onnx_models import constant_detector
 
 GSD = 0.25  # the rendered level's metres per pixel
 
@@ -200,25 +201,7 @@ class World:
     @cached_property
     def onnx_detector(self) -> Path:
         """An ONNX detector that ignores its input and finds one boat in every window it is given."""
-        import onnx
-        from onnx import TensorProto, helper
-
-        out = np.asarray([[[20, 20, 16, 4, 0.0, 0.9, 0]]], np.float32)
-        inp = helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 64, 64])
-        res = helper.make_tensor_value_info("out", TensorProto.FLOAT, list(out.shape))
-        const = helper.make_node("Constant", [], ["c"], value=helper.make_tensor("v", TensorProto.FLOAT, out.shape,
-                                                                                 out.ravel().tolist()))
-        red = helper.make_node("ReduceSum", ["images"], ["s"], keepdims=0)
-        zero = helper.make_node("Constant", [], ["z"], value=helper.make_tensor("zv", TensorProto.FLOAT, [], [0.0]))
-        mul = helper.make_node("Mul", ["s", "z"], ["sz"])
-        add = helper.make_node("Add", ["c", "sz"], ["out"])
-        m = helper.make_model(helper.make_graph([const, red, zero, mul, add], "tiny", [inp], [res]),
-                              opset_imports=[helper.make_opsetid("", 13)])
-        m.ir_version = 8
-        helper.set_model_props(m, {"names": "{0: 'ship'}"})
-        path = self.tmp / "det.onnx"
-        onnx.save(m, str(path))
-        return path
+        return constant_detector(self.tmp / "det.onnx", [[20, 20, 16, 4, 0.0, 0.9, 0]], names="{0: 'ship'}")
 
     @cached_property
     def scene(self):

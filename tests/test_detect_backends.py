@@ -18,6 +18,7 @@ from coastforge.detection.yolo import (YoloDetector, box_from_xywhr, results_to_
 from coastforge.errors import BackendUnavailable, InputError
 from coastforge.frames import wrap_half_deg
 from coastforge.types import GeoImage, Grid
+from onnx_models import constant_detector
 
 
 def _image(w=300, h=200):
@@ -128,29 +129,7 @@ def test_yolo_random_weights_end_to_end(tmp_path, monkeypatch):
 
 def _tiny_onnx(path, rows=None, raw_nc=None, fixed=(64, 64)):
     """An ONNX graph that ignores its image and returns constant detections."""
-    import onnx
-    from onnx import TensorProto, helper
-
-    if raw_nc is None:
-        out = np.asarray(rows, np.float32)[None]
-    else:
-        out = np.asarray(rows, np.float32)  # (1, 5+nc, A)
-    h, w = fixed
-    inp = helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, h, w])
-    res = helper.make_tensor_value_info("out", TensorProto.FLOAT, list(out.shape))
-    const = helper.make_node("Constant", [], ["c"], value=helper.make_tensor("v", TensorProto.FLOAT, out.shape,
-                                                                             out.ravel().tolist()))
-    # out = c + 0 * sum(images): keeps the input wired into the graph
-    red = helper.make_node("ReduceSum", ["images"], ["s"], keepdims=0)
-    zero = helper.make_node("Constant", [], ["z"], value=helper.make_tensor("zv", TensorProto.FLOAT, [], [0.0]))
-    mul = helper.make_node("Mul", ["s", "z"], ["sz"])
-    add = helper.make_node("Add", ["c", "sz"], ["out"])
-    g = helper.make_graph([const, red, zero, mul, add], "tiny", [inp], [res])
-    m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 13)])
-    m.ir_version = 8
-    helper.set_model_props(m, {"names": "{0: 'ship', 1: 'small vehicle', 2: 'plane'}"})
-    onnx.save(m, str(path))
-    return path
+    return constant_detector(path, rows, raw_nc=raw_nc, fixed=fixed)
 
 
 def test_onnx_rows_letterboxed_and_mapped(tmp_path):
