@@ -131,6 +131,26 @@ def test_training_batches_are_balanced_and_augmented():
     assert w[7] > w[0]
 
 
+def test_wide_looks_make_land_dark_and_keep_base_draws():
+    """``--looks wide`` lets a land class turn dark (so dark alone never means water) and casts shadows;
+    ``base`` is the default."""
+    from coastforge.rng import stage_rng
+    from coastforge.train import seg_train
+
+    ids = np.full((64, 64), 3, np.uint8)  # grass
+    ids[:, :32] = 0  # and water
+    rgb = np.full((64, 64, 3), 150, np.uint8)
+
+    def grass_means(looks):
+        rng = stage_rng(5, "looks")
+        return np.array([seg_train.augment(rgb, ids, rng, looks)[:, 32:].mean() for _ in range(300)])
+
+    base, wide = grass_means("base"), grass_means("wide")
+    assert np.percentile(wide, 10) < np.percentile(base, 10) - 10  # darker land is drawn more often
+    rng_a, rng_b = stage_rng(5, "same"), stage_rng(5, "same")
+    assert np.array_equal(seg_train.augment(rgb, ids, rng_a), seg_train.augment(rgb, ids, rng_b, "base"))
+
+
 def test_coarse_images_fall_back_to_classical_and_bad_mode():
     from coastforge.segmentation.classical import ClassicalSegmenter
 

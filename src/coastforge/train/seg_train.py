@@ -14,7 +14,9 @@ The shipped model (its card ``segmenter.json`` has the exact command, 12.9 min o
 
 (``ships`` and ``cars`` as weak labels were tried and not shipped: the network then took packed car parks
 for rafted boats, i.e. water. ``streets``, the Munich crops as "no water anywhere", was tried too: it did not
-lower the false water on the Dubai validation tiles and cost the DOTA marina its 0.60 mIoU.)
+lower the false water on the Dubai validation tiles and cost the DOTA marina its 0.60 mIoU. ``--looks wide``,
+dark/grey land classes and cast shadows against the dark lawns and shadows taken for water there, was tried
+from the shipped model too: Dubai training tiles improved, the validation tiles did not; see docs/benchmarks.md.)
 
 ``--real`` mixes in the training splits of real sets in ``../shared/data`` (never the validation groups
 of ``coastforge.realdata``): ``dubai`` (land-cover masks), ``ships`` and ``cars`` (boxes as weak labels:
@@ -62,6 +64,7 @@ N_CODES = 13  # REAL_WATER: water of a real photo (weighted as a set, not by the
 # input side multiple and the tile overlap inference needs (> half the useful receptive field) per network
 ARCH_MULTIPLE = {"unet4": 16, "unet5": 32}
 ARCH_OVERLAP_PX = {"unet4": 48, "unet5": 96}
+LOOKS = ("base", "wide")  # appearance randomisation recipes (augment)
 DUBAI_NOMINAL_GSD_M = 0.6  # ../shared/data/README.md: "about 0.5-1 m/px"; DESIGN.md §5 uses 0.6
 
 
@@ -177,26 +180,55 @@ def load_levels(data_dir: Path, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np
     return out
 
 
-def _recolour_classes(img: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Per-class colour gains: the same class looks different from photo to photo."""
+def _recolour_classes(img: np.ndarray, ids: np.ndarray, rng: np.random.Generator, wide: bool = False) -> np.ndarray:
+    """Per-class colour gains: the same class looks different from photo to photo. ``wide``: land classes
+    too may turn dark, grey or of another hue (dark wet lawns, grey scrub, dusty trees), so a dark
+    smooth patch alone never says water and the network has to look at texture and context."""
+    waters = (WATER, REAL_WATER) if wide else (WATER,)
     for c in np.unique(ids):
         m = ids == c
-        if c == WATER:
+        if c in waters:
             g = rng.uniform(0.55, 1.45, 3)  # blue, green, olive, brown, grey water
+        elif wide and rng.random() < 0.5:
+            g = rng.normal(1.0, 0.08, 3) * math.exp(rng.uniform(math.log(0.4), math.log(1.25)))
         else:
             g = rng.normal(1.0, 0.12, 3)
-        img[m] = img[m] * g.astype(np.float32) + rng.normal(0, 8)
+        v = img[m] * g.astype(np.float32) + rng.normal(0, 8)
+        if wide and c not in waters and rng.random() < 0.3:  # desaturate this class only
+            grey = v.mean(1, keepdims=True)
+            v = grey + (v - grey) * rng.uniform(0.0, 0.6)
+        img[m] = v
     return img
 
 
-def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Appearance randomisation of one crop (uint8 → float32 0..255, labels unchanged)."""
+def _shadows(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Cast shadows: a few dark, slightly blue rotated rectangles (a building's or a tree row's) over
+    whatever lies below; labels unchanged, since a shadowed lawn is still a lawn."""
+    h, w = img.shape[:2]
+    mask = np.zeros((h, w), np.uint8)
+    for _ in range(int(rng.integers(1, 5))):
+        size = (float(rng.uniform(0.05, 0.4) * w), float(rng.uniform(0.05, 0.25) * h))
+        box = cv2.boxPoints(((float(rng.uniform(0, w)), float(rng.uniform(0, h))), size, float(rng.uniform(0, 180))))
+        cv2.fillConvexPoly(mask, box.astype(np.int32), 1)
+    f = rng.uniform(0.3, 0.7)
+    tint = np.array([f * 0.92, f * 0.97, f * 1.1], np.float32)  # skylight: shadows are bluer than sunlit ground
+    sel = mask.astype(bool)
+    img[sel] = img[sel] * tint
+    return img
+
+
+def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator, looks: str = "base") -> np.ndarray:
+    """Appearance randomisation of one crop (uint8 → float32 0..255, labels unchanged). ``looks="wide"``
+    adds dark/grey/other-hue land classes, cast shadows and the odd greyscale crop (see ``LOOKS``)."""
+    wide = looks == "wide"
     img = rgb.astype(np.float32)
-    if rng.random() < 0.6:
-        img = _recolour_classes(img, ids, rng)
+    if rng.random() < (0.8 if wide else 0.6):
+        img = _recolour_classes(img, ids, rng, wide)
+    if wide and rng.random() < 0.3:
+        img = _shadows(img, rng)
     img = img * rng.uniform(0.75, 1.25, 3).astype(np.float32)  # white balance
     grey = img.mean(2, keepdims=True)
-    img = grey + (img - grey) * rng.uniform(0.4, 1.5)  # saturation
+    img = grey + (img - grey) * (rng.uniform(0.4, 1.5) if not (wide and rng.random() < 0.08) else 0.0)  # saturation
     mean = img.mean()
     img = mean + (img - mean) * rng.uniform(0.6, 1.4) + rng.uniform(-35, 35)  # contrast, brightness
     img = 255.0 * (np.clip(img, 0, 255) / 255.0) ** rng.uniform(0.7, 1.5)  # gamma
@@ -232,8 +264,8 @@ def class_centres(levels, rng: np.random.Generator, per_level: int = 300) -> lis
 
 def sample_batch(levels, batch: int, crop: int, rng: np.random.Generator,
                  centres: list[np.ndarray] | None = None,
-                 pools: list[tuple[list, list | None, tuple[float, float], float]] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 pools: list[tuple[list, list | None, tuple[float, float], float]] | None = None,
+                 looks: str = "base") -> tuple[np.ndarray, np.ndarray]:
     """A batch of augmented crops: (N, 3, crop, crop) float32 in [-0.5, 0.5], (N, crop, crop) int64 label
     codes. ``pools``: more sources (levels, centres, scale range, share of the batch); the renders
     ``levels`` take the rest."""
@@ -245,11 +277,12 @@ def sample_batch(levels, batch: int, crop: int, rng: np.random.Generator,
     w = np.array([p[3] for p in allp], np.float64)
     for b in range(batch):
         lv, ce, (slo, shi), _ = allp[int(rng.choice(len(allp), p=w / w.sum()))]
-        xs[b], ys[b] = _one_crop(lv, crop, rng, ce, slo, shi)
+        xs[b], ys[b] = _one_crop(lv, crop, rng, ce, slo, shi, looks)
     return xs, ys
 
 
-def _one_crop(levels, crop: int, rng: np.random.Generator, centres, slo: float, shi: float):
+def _one_crop(levels, crop: int, rng: np.random.Generator, centres, slo: float, shi: float,
+              looks: str = "base"):
     """One augmented crop (3, crop, crop) float32 and its label codes (crop, crop)."""
     s = math.exp(rng.uniform(math.log(slo), math.log(shi)))  # GSD error / scale jitter
     side = int(round(crop / s))
@@ -282,7 +315,7 @@ def _one_crop(levels, crop: int, rng: np.random.Generator, centres, slo: float, 
     if rng.random() < 0.5:
         ci, li = ci[:, ::-1], li[:, ::-1]
     ci, li = np.ascontiguousarray(ci), np.ascontiguousarray(li)
-    img = augment(ci, li, rng)
+    img = augment(ci, li, rng, looks)
     return img.transpose(2, 0, 1) / 255.0 - 0.5, li
 
 
@@ -364,7 +397,8 @@ def _eval_marina(onnx_path: Path, meta: dict) -> str:
 
 def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch: int = 12, crop: int = 128,
           lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400,
-          real: tuple[str, ...] = (), init: str | Path | None = None, arch: str = "unet4") -> Path:
+          real: tuple[str, ...] = (), init: str | Path | None = None, arch: str = "unet4",
+          looks: str = "base") -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -400,7 +434,7 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
             raise InputError(f"--init {init} does not exist; give a segmenter.onnx written by this command")
 
         def make_input(n: int):
-            x, _ = sample_batch(levels, n, crop, rng, centres, pools)
+            x, _ = sample_batch(levels, n, crop, rng, centres, pools, looks)
             return torch.from_numpy(x)
 
         diff = init_from_onnx(torch, net, init, make_input, batches=12)
@@ -414,7 +448,7 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     cmd = (f"python -m coastforge.train.seg_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1}"
            f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
            f"--batch {batch} --crop {crop} --width {width} --seed {seed} --lr {lr}"
-           + (f" --arch {arch}" if arch != "unet4" else ""))
+           + (f" --arch {arch}" if arch != "unet4" else "") + (f" --looks {looks}" if looks != "base" else ""))
     if real:
         cmd += " --real " + ",".join(f"{k}:{v:g}" for k, v in shares.items())
     if init is not None:
@@ -430,13 +464,13 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
             "input": "RGB 0..1, NCHW", "output": "logits (1, 8, H, W)",
             "datasets": datasets,
             "training": {"seed": seed, "steps": steps, "batch": batch, "crop_px": crop, "lr": lr, "width": width,
-                         "threads": 1, "levels": len(levels), "params": n_params,
+                         "threads": 1, "levels": len(levels), "params": n_params, "looks": looks,
                          "data_seeds": [min(seeds), max(seeds)], "command": cmd,
                          "init": str(init.name) if init is not None else None}}
     t_train = time.time()
     run = 0.0
     for step in range(1, steps + 1):
-        x, y = sample_batch(levels, batch, crop, rng, centres, pools)
+        x, y = sample_batch(levels, batch, crop, rng, centres, pools, looks)
         logits = net(torch.from_numpy(x))
         loss = set_loss(torch, logits, torch.from_numpy(y), sets_t, weights_t)
         opt.zero_grad()
@@ -474,11 +508,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--init", default=None, help="start from this exported segmenter.onnx")
     ap.add_argument("--arch", default="unet4", choices=sorted(ARCH_MULTIPLE),
                     help="unet4: 4 stages (1/16); unet5: a 1/32 stage too (wider context)")
+    ap.add_argument("--looks", default="base", choices=LOOKS,
+                    help="appearance randomisation: base, or wide (land classes dark/grey/other hues, cast shadows)")
     a = ap.parse_args(argv)
     if a.crop % ARCH_MULTIPLE[a.arch]:
         raise InputError(f"--crop {a.crop} must be a multiple of {ARCH_MULTIPLE[a.arch]} for --arch {a.arch}")
     train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
-          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch)
+          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch, looks=a.looks)
 
 
 def parse_real(items: tuple[str, ...]) -> dict[str, float]:
