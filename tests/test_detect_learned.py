@@ -177,6 +177,29 @@ def test_shipped_model_finds_boats_on_a_generated_level(tiny_level):
     assert sum(d.category == "boat" for d in dets) <= len(boats) + 2  # few false boats
 
 
+def test_flip_tta_is_mirror_symmetric(tiny_level):
+    """With ``flip_tta`` the network's pass and its mirrored pass are averaged after mapping the mirrored
+    maps back, so mirroring the image mirrors every box exactly: a wrong sign or offset in the mapping
+    (centre offset ``1 - r``, reflected angles) moves them. One tile (side a multiple of 32) keeps the tiling
+    itself symmetric."""
+    img, _ = tiny_level
+    n = min(img.rgb.shape[:2]) // 32 * 32
+    rgb = np.ascontiguousarray(img.rgb[:n, :n])
+    det = LearnedDetector(DetectConfig(flip_tta=True))
+    a = det.run(rgb, 0.3)
+    b = det.run(np.ascontiguousarray(rgb[:, ::-1]), 0.3)
+    assert len(a) >= 3 and len(a) == len(b)
+    b[:, 2] = n - b[:, 2]  # mirrored back: column, and the yaw reflected about the image's vertical
+    b[:, 6] = [frames.wrap_deg(180.0 - y) for y in b[:, 6]]
+    a, b = a[np.lexsort((a[:, 3], a[:, 2]))], b[np.lexsort((b[:, 3], b[:, 2]))]
+    assert np.allclose(a[:, :6], b[:, :6], atol=1e-3)
+    assert np.allclose([frames.wrap_half_deg(d) for d in a[:, 6] - b[:, 6]], 0.0, atol=1e-2)  # axes
+    known = a[:, 7] > 0.6  # fronts, where the network has one (a buoy's is a coin toss at 0)
+    assert np.allclose([frames.wrap_deg(d) for d in a[known, 6] - b[known, 6]], 0.0, atol=1e-2)
+    plain = LearnedDetector(DetectConfig(flip_tta=False)).run(rgb, 0.3)
+    assert not np.array_equal(plain[:, 1], a[:, 1][:len(plain)])  # the option does change the scores
+
+
 def test_bad_gsd_is_refused(tiny_level):
     img, _ = tiny_level
     det = LearnedDetector(DetectConfig())

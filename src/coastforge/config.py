@@ -100,6 +100,9 @@ class DetectConfig:
     # learned and hybrid backends: each confident boat's axis averaged with the network's on its crop turned
     # by 90, 180 and 270° (see ``LearnedDetector.tta_axes``); False: the one pass's axis
     axis_tta: bool = True
+    # learned backend: the network also runs on each tile mirrored, and the two heatmaps and box maps are
+    # averaged (an object one pass is unsure of is found when the other is sure; axes steadier)
+    flip_tta: bool = True
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0
     min_vehicle_length_m: float = 3.0

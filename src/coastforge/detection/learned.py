@@ -6,7 +6,8 @@ resampled to it (so object sizes in pixels are the same at any GSD), cut into ov
 each tile gives per-class centre heatmaps (boat, vehicle, buoy), with, at stride 4, the sub-cell
 offset, log length/width, the long axis as (cos 2θ, sin 2θ) and the front as (cos θ, sin θ).
 Decoding: heatmap local maxima (3x3, inside the ONNX graph) above a threshold → boxes; the heading
-is the axis direction the front vector agrees with, its confidence how strongly it agrees.
+is the axis direction the front vector agrees with, its confidence how strongly it agrees. By default
+(``detect.flip_tta``) each tile also runs mirrored and the two passes' maps are averaged before decoding.
 Piers are not detected by this backend (the classical backend does them).
 """
 
@@ -26,7 +27,8 @@ from ..frames import wrap_deg, wrap_half_deg
 from ..types import ClassMap, Detection, GeoImage
 from .nms import rotated_nms
 
-DEFAULT_META = {"classes": ["boat", "vehicle", "buoy"], "work_gsd_m": 0.2, "stride": 4, "thresholds": {}}
+DEFAULT_META = {"classes": ["boat", "vehicle", "buoy"], "work_gsd_m": 0.2, "stride": 4, "thresholds": {},
+                "thresholds_single_pass": {}}
 TILE_PX = 768  # tile size at the working GSD
 TILE_OVERLAP_PX = 128  # > most objects' length (25 m boats); larger ones are merged by NMS
 HEADING_KNOWN_CONF = 0.6  # |front · axis| >= 0.2
@@ -129,7 +131,11 @@ class LearnedDetector:
         self.meta = load_meta(p)
         # per-class score thresholds tuned after training (sidecar), unless one is given
         base = float(threshold if threshold is not None else max(0.05, self.config.min_score))
-        tuned = {} if threshold is not None else dict(self.meta.get("thresholds") or {})
+        # the card's thresholds are for the default mirrored pair of passes (``flip_tta``); one pass's
+        # scores are less steady and have their own, where the card gives them
+        key = "thresholds" if self.config.flip_tta or not self.meta.get("thresholds_single_pass") \
+            else "thresholds_single_pass"
+        tuned = {} if threshold is not None else dict(self.meta.get(key) or {})
         self.class_threshold = {c: float(tuned.get(c, base)) for c in self.meta["classes"]}
         self.threshold = min([base, *self.class_threshold.values()])
 
@@ -155,13 +161,35 @@ class LearnedDetector:
                 tile = cv2.copyMakeBorder(tile, 0, ph, 0, pw, cv2.BORDER_REFLECT_101 if min(th, tw) > 1
                                           else cv2.BORDER_REPLICATE)
             x = np.ascontiguousarray(tile.transpose(2, 0, 1)[None].astype(np.float32))
-            _heat, peaks, reg = self.session.run(["heat", "peaks", "reg"], {"image": x})
-            d = decode(peaks[0], reg[0], self.threshold if threshold is None else threshold, stride)
+            if self.config.flip_tta:
+                peaks, reg = self._run_flipped(x)
+            else:
+                _heat, peaks_b, reg_b = self.session.run(["heat", "peaks", "reg"], {"image": x})
+                peaks, reg = peaks_b[0], reg_b[0]
+            d = decode(peaks, reg, self.threshold if threshold is None else threshold, stride)
             d = d[(d[:, 2] < tw) & (d[:, 3] < th)]  # nothing from the padding
             d[:, 2] += c0
             d[:, 3] += r0
             rows.append(d)
         return np.concatenate(rows, 0) if rows else np.zeros((0, 8))
+
+    def _run_flipped(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Peaks and box maps of one tile (1, 3, H, W) as the mean of the network's pass on it and on its
+        mirror image (columns reversed), mapped back: the mirror is lossless and its stride-4 cells line up
+        with the tile's (H, W are multiples of 32), so the heatmaps average cell by cell. In a mirrored
+        map the centre offset across is ``1 - r`` and the angles reflect (sin 2θ and cos θ change sign)."""
+        from scipy.ndimage import maximum_filter
+
+        heat_a, reg_a = self.session.run(["heat", "reg"], {"image": x})
+        heat_b, reg_b = self.session.run(["heat", "reg"], {"image": np.ascontiguousarray(x[..., ::-1])})
+        heat = 0.5 * (heat_a[0] + heat_b[0][..., ::-1])
+        rb = reg_b[0][..., ::-1].copy()
+        rb[0] = 1.0 - rb[0]
+        rb[5] = -rb[5]
+        rb[6] = -rb[6]
+        reg = 0.5 * (reg_a[0] + rb)
+        peaks = heat * (maximum_filter(heat, size=(1, 3, 3), mode="constant", cval=-1.0) == heat)
+        return peaks, reg
 
     def detect(self, image: GeoImage, class_map: ClassMap | None = None, seed: int = 0,
                floor: float | None = None) -> list[Detection]:
