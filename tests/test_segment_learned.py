@@ -38,6 +38,15 @@ def test_tiles_cover_exactly_once():
         assert all(s <= kf < kt <= e and e - s <= max(768, 0) for s, e, kf, kt in t)
 
 
+def test_tiles_are_even_and_keep_their_context():
+    # 1707: a 2560 px window at 0.2 m/px on the 0.3 m/px grid; 1365: 2048 px
+    for n, count in ((1365, 2), (1707, 3), (2731, 4), (5001, 8)):
+        t = learned._tiles(n, 768, 48, 16)
+        assert len(t) == count
+        assert len({e - s for s, e, _, _ in t}) == 1 and (t[0][1] - t[0][0]) % 16 == 0
+        assert all(kf - s >= 48 for s, _, kf, _ in t[1:]) and all(e - kt >= 48 for _, e, _, kt in t[:-1])
+
+
 @pytest.fixture(scope="module")
 def render():
     """A small level of a seed never trained on (training used 2000-2239), rendered like the benchmark."""

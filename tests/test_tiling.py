@@ -346,6 +346,20 @@ def test_piers_tiled_matches_build_piers():
     assert (d.min(1) < 0.5).mean() > 0.95 and (d.min(0) < 0.5).mean() > 0.95
 
 
+def test_detection_windows_overlap_by_half_the_longest_boat(scene_png, tmp_path):
+    """Detection reads its windows with its own overlap (an object is whole in the tile owning its centre),
+    not the segmentation's context."""
+    from coastforge.pipeline import GenerateRequest
+    from coastforge.pipeline.tiled import TiledImage
+
+    req = GenerateRequest(image=str(scene_png), out=str(tmp_path / "t"), gsd_m=0.2, report=False)
+    cfg = Config()
+    want = int(np.ceil(cfg.detect.max_boat_length_m / 2 / 0.2)) + 8
+    for overlap in (OVERLAP, 256):
+        front = TiledImage.open(req, cfg, tile_px=320, overlap_px=overlap, scene_max_px=300)
+        assert front.overlap_px == overlap and front.detect_overlap_px == want
+
+
 def test_generate_tiled_writes_the_scene_contract(scene_png, tmp_path):
     """The whole tiled generate on a 600 px image in 2 x 2 tiles with a 300 px scene grid: the scene rasters
     are on the coarse grid, detections stay in input pixels, side rasters and the World-Partition tiles

@@ -53,8 +53,8 @@ class TiledImage:
     scene_grid: Grid
     preview: GeoImage  # the image averaged down to the scene grid
     tile_px: int
-    overlap_px: int
-    detect_overlap_px: int
+    overlap_px: int  # the segmentation windows' context
+    detect_overlap_px: int  # the detection windows': half the longest boat (``DetectConfig.max_boat_length_m``)
 
     @classmethod
     def open(cls, req, config: Config, tile_px: int = 2048, overlap_px: int = 256,
@@ -74,9 +74,10 @@ class TiledImage:
         check_memory(req.image, sw, sh, src.grid.gsd_m * W / sw, config.io, stages=config,
                      read_bytes_per_px=W * H / (sw * sh), tiled=True)
         preview = read_overview(src, sw, sh)
-        # an object is whole in some tile when the overlap is at least half its length
+        # detection's own overlap: an object is whole in the tile that owns its centre when the overlap is at
+        # least half its length (more context changes the boxes no more than moving the windows by a pixel)
         half_boat_px = int(math.ceil(config.detect.max_boat_length_m / 2 / src.grid.gsd_m))
-        det_ov = max(overlap_px, min(tile_px, half_boat_px + 8))
+        det_ov = min(tile_px, half_boat_px + 8)
         return cls(src, preview.grid, preview, tile_px, overlap_px, det_ov)
 
     @property

@@ -77,21 +77,21 @@ def _read_meta(weights: Path, meta: dict | str | Path | None) -> dict:
     return spec
 
 
-def _tiles(n: int, tile: int, overlap: int) -> list[tuple[int, int, int, int]]:
-    """1-D windows (start, stop, keep_from, keep_to) covering 0..n; each keeps its centre part."""
+def _tiles(n: int, tile: int, overlap: int, multiple: int = 1) -> list[tuple[int, int, int, int]]:
+    """1-D windows (start, stop, keep_from, keep_to) covering 0..n; each keeps its centre part, with at least
+    ``overlap`` of context on each inner side. As few windows of at most ``tile`` as that allows, all of one
+    size (rounded up to ``multiple``, the network's): evenly spread, no window mostly repeats its neighbour."""
     if n <= tile:
         return [(0, n, 0, n)]
     if tile <= 2 * overlap:
         raise InputError(f"segmenter tiles of {tile} px cannot keep {overlap} px of context on each side; "
                          "the model card's overlap_px must be less than half the tile")
-    step = tile - 2 * overlap
-    starts = list(range(0, n - tile, step)) + [n - tile]
-    out, keep_from = [], 0
-    for i, s in enumerate(starts):
-        keep_to = n if i == len(starts) - 1 else s + tile - overlap
-        out.append((s, s + tile, keep_from, keep_to))
-        keep_from = keep_to
-    return out
+    k = -(-(n - 2 * overlap) // (tile - 2 * overlap))
+    size = -(-(n + 2 * overlap * (k - 1)) // k)
+    size = min(tile, -(-size // multiple) * multiple)
+    starts = [i * (n - size) // (k - 1) for i in range(k)]
+    keeps = [0] + [(s + e) // 2 for s, e in zip(starts[1:], (s + size for s in starts[:-1]))] + [n]
+    return [(s, s + size, keeps[i], keeps[i + 1]) for i, s in enumerate(starts)]
 
 
 class LearnedSegmenter:
@@ -136,8 +136,8 @@ class LearnedSegmenter:
         h, w = rgb.shape[:2]
         out = np.empty((h, w, N_CLASSES), np.float32)
         name = sess.get_inputs()[0].name
-        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, overlap):
-            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, overlap):
+        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, overlap, mult):
+            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, overlap, mult):
                 tile = rgb[r0:r1, c0:c1]
                 th, tw = tile.shape[:2]
                 ph, pw = (-th) % mult, (-tw) % mult
