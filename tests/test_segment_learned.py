@@ -140,7 +140,7 @@ def test_training_batches_are_balanced_and_augmented():
     assert w[7] > w[0]
 
 
-def test_wide_looks_make_land_dark_and_keep_base_draws():
+def test_wide_looks_make_land_dark_and_base_is_the_default():
     """``--looks wide`` lets a land class turn dark (so dark alone never means water) and casts shadows;
     ``base`` is the default."""
     from coastforge.rng import stage_rng

@@ -164,8 +164,7 @@ class LearnedDetector:
             if self.config.flip_tta:
                 peaks, reg = self._run_flipped(x)
             else:
-                _heat, peaks_b, reg_b = self.session.run(["heat", "peaks", "reg"], {"image": x})
-                peaks, reg = peaks_b[0], reg_b[0]
+                peaks, reg = (o[0] for o in self.session.run(["peaks", "reg"], {"image": x}))
             d = decode(peaks, reg, self.threshold if threshold is None else threshold, stride)
             d = d[(d[:, 2] < tw) & (d[:, 3] < th)]  # nothing from the padding
             d[:, 2] += c0

@@ -228,7 +228,8 @@ def augment(rgb: np.ndarray, ids: np.ndarray, rng: np.random.Generator, looks: s
         img = _shadows(img, rng)
     img = img * rng.uniform(0.75, 1.25, 3).astype(np.float32)  # white balance
     grey = img.mean(2, keepdims=True)
-    img = grey + (img - grey) * (rng.uniform(0.4, 1.5) if not (wide and rng.random() < 0.08) else 0.0)  # saturation
+    sat = 0.0 if wide and rng.random() < 0.08 else rng.uniform(0.4, 1.5)  # wide: the odd greyscale crop
+    img = grey + (img - grey) * sat  # saturation
     mean = img.mean()
     img = mean + (img - mean) * rng.uniform(0.6, 1.4) + rng.uniform(-35, 35)  # contrast, brightness
     img = 255.0 * (np.clip(img, 0, 255) / 255.0) ** rng.uniform(0.7, 1.5)  # gamma
