@@ -553,6 +553,7 @@ PROBES: dict[str, Probe] = {
     "detect.hybrid_support": _p(detect_hybrid, 0.0),
     "detect.axis_tta": _p(detect_run, False, **LEARNED),
     "detect.flip_tta": _p(detect_run, False, **LEARNED),
+    "detect.row_context": _p(detect_run, 0.3, **LEARNED),
     "detect.min_score": _p(detect_run, 0.8),
     "detect.slice_px": _p(detect_onnx, 256),
     "detect.slice_overlap_px": _p(detect_onnx, 32, detect__slice_px=160),

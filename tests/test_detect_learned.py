@@ -334,3 +334,27 @@ def test_label_mask_teaches_unlabelled_classes_only_near_labelled_objects():
     assert (m[0] == 1).all()  # boats: everywhere
     assert m[1, 20, 20] == 1 and m[1, 5, 5] == 0  # vehicles: on the boat, not far from it
     assert (label_mask(boxes, np.ones(3, bool), 160) == 1).all()
+
+
+def test_row_context_raises_a_weak_boat_in_a_gap_of_a_moored_row(monkeypatch):
+    """``detect.row_context``: a weak boat peak abreast of confident boats (parallel, side by side) gains score
+    per neighbour and is kept; the same weak peak alone, across the row, or at the row's bow end is not.
+    The stand-in network returns rows in working pixels (the image is at the working GSD)."""
+    thr = LearnedDetector(DetectConfig()).class_threshold["boat"]
+    weak = thr - 0.06  # two neighbours (2 x 0.05) lift it over the threshold, none do not
+    # three boats 40 x 12 px, bows pointing right (yaw 0), moored side by side 16 px apart, a gap at y = 132
+    row = [[0, 0.8, 100.0, y, 40.0, 12.0, 0.0, 0.9] for y in (100.0, 116.0, 148.0)]
+    gap = [0, weak, 101.0, 132.0, 38.0, 12.0, 2.0, 0.9]
+    alone = [0, weak, 300.0, 300.0, 40.0, 12.0, 0.0, 0.9]
+    across = [0, weak, 100.0, 164.0, 40.0, 12.0, 90.0, 0.9]  # abreast but turned 90°: a pier finger's way
+    ahead = [0, weak, 150.0, 116.0, 40.0, 12.0, 0.0, 0.9]  # in line with a boat's bow, not beside it
+    rows = np.array([*row, gap, alone, across, ahead], np.float64)
+    img = GeoImage(rgb=np.zeros((400, 400, 3), np.uint8), grid=Grid(400, 400, 0.2))
+
+    def found(boost):
+        det = LearnedDetector(DetectConfig(axis_tta=False, row_context=boost))
+        monkeypatch.setattr(det, "run", lambda work, threshold=None: rows[rows[:, 1] >= threshold])
+        return sorted((round(d.cx_px), round(d.cy_px)) for d in det.detect(img, None, 0))
+
+    assert found(0.0) == [(100, 100), (100, 116), (100, 148)]
+    assert found(0.05) == [(100, 100), (100, 116), (100, 148), (101, 132)]

@@ -103,6 +103,9 @@ class DetectConfig:
     # learned backend: the network also runs on each tile mirrored, and the two heatmaps and box maps are
     # averaged (an object one pass is unsure of is found when the other is sure; axes steadier)
     flip_tta: bool = True
+    # learned backend: a boat or vehicle the network is unsure of gains this much score for each confident one
+    # of its class moored or parked beside it, parallel (at most two: ``LearnedDetector.row_context``)
+    row_context: float = 0.05
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0
     min_vehicle_length_m: float = 3.0
@@ -470,7 +473,7 @@ _POSITIVE = frozenset({  # divisors, sizes and scales: 0 would divide by zero or
 })
 
 _FRACTIONS = frozenset({  # scores, thresholds, IoUs, fractions and blend weights: [0, 1]
-    "io.gsd_tolerance", "detect.hybrid_support", "detect.min_score", "detect.nms_iou", "detect.vehicle_max_wet",
+    "io.gsd_tolerance", "detect.hybrid_support", "detect.row_context", "detect.min_score", "detect.nms_iou", "detect.vehicle_max_wet",
     "detect.boat_core_headroom", "detect.vehicle_ground_frac", "match.sample_margin",
     "match.shape_offset_weight_fine", "match.shape_offset_weight_coarse",
 })

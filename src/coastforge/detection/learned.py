@@ -42,6 +42,12 @@ VEHICLE_MAX_IOA = 0.1
 # ``tta_axes``: the crop around an object is this many times its length (at least TTA_MIN_PX), in working
 # pixels; a turned crop's box is the object's when its centre is within TTA_MATCH of the length
 TTA_CROP, TTA_MIN_PX, TTA_MATCH = 1.2, 64, 0.3
+# ``row_context``: boats are moored and vehicles parked in rows; a weak candidate beside a confident one of its
+# class (axes within ROW_MAX_DYAW_DEG, abreast: offset along the axis at most ROW_MAX_ALONG of the longer one,
+# across it between ROW_MIN_ACROSS and ROW_MAX_ACROSS of the wider one) gains ``detect.row_context`` per
+# neighbour, for at most ROW_MAX_NEIGHBOURS of them
+ROW_CATEGORIES = ("boat", "vehicle")
+ROW_MAX_DYAW_DEG, ROW_MAX_ALONG, ROW_MIN_ACROSS, ROW_MAX_ACROSS, ROW_MAX_NEIGHBOURS = 20.0, 0.6, 0.5, 2.2, 2
 # vehicles gained nothing once ``refine`` had fitted their mirror axis (docs/benchmarks.md) and are most of
 # the objects in car parks: not worth the time
 TTA_CATEGORIES = ("boat",)
@@ -216,11 +222,15 @@ class LearnedDetector:
                   "vehicle": (cfg.min_vehicle_length_m * 0.6, cfg.max_vehicle_length_m),
                   "buoy": (0.0, 4.0)}
         dets = []
-        rows = self.run(work, None if floor is None else min(float(floor), self.threshold))
+        boost = max(0.0, float(getattr(cfg, "row_context", 0.0)))
+        reach = boost * ROW_MAX_NEIGHBOURS  # a candidate this far below its threshold may still reach it
+        lowest = self.threshold - reach if floor is None else min(float(floor), self.threshold - reach)
+        rows = self.run(work, max(1e-3, lowest))
         for c, score, cx, cy, length, width, yaw, conf in rows:
             cat = classes[int(c)]
             thr = self.class_threshold[cat]
-            if score < (thr if floor is None else min(floor, thr)):
+            low = thr - reach if cat in ROW_CATEGORIES else thr
+            if score < (low if floor is None else min(floor, low)):
                 continue
             lo, hi = limits.get(cat, (0.0, math.inf))
             if not (lo <= length * work_gsd <= hi):
@@ -234,9 +244,16 @@ class LearnedDetector:
         # is never two categories either
         # the network's front is kept even when weakly confident; for vehicles ``detect`` then adds the
         # windscreen cue of ``detection.heading.vehicle_fronts`` to it as log-odds (after refinement)
-        strong = [d for d in dets if self.is_confident(d)]
+        strong = rotated_nms([d for d in dets if self.is_confident(d)], cfg.nms_iou, class_aware=False,
+                             ioa_threshold=0.8)
         weak = [d for d in dets if not self.is_confident(d)]  # evidence only: not de-duplicated (speed)
-        strong = rotated_nms(strong, cfg.nms_iou, class_aware=False, ioa_threshold=0.8)
+        if boost > 0 and weak:  # weak ones abreast of the (de-duplicated) confident ones may join them
+            weak = row_context(weak, strong, self.class_threshold, boost)
+            if any(self.is_confident(d) for d in weak):
+                strong = rotated_nms(strong + [d for d in weak if self.is_confident(d)], cfg.nms_iou,
+                                     class_aware=False, ioa_threshold=0.8)
+                weak = [d for d in weak if not self.is_confident(d)]
+        weak = [] if floor is None else [d for d in weak if d.score >= floor]
         cars = rotated_nms([d for d in strong if d.category == "vehicle"], cfg.nms_iou,
                            ioa_threshold=VEHICLE_MAX_IOA)
         keep = {id(d) for d in cars}
@@ -286,3 +303,32 @@ class LearnedDetector:
             turn = wrap_half_deg(axis - d.yaw_deg)  # to the nearer end of the mean axis
             out[i] = replace(d, yaw_deg=float(wrap_deg(d.yaw_deg + turn)))
         return out
+
+
+def row_context(weak: list[Detection], sure: list[Detection], thresholds: dict[str, float],
+                boost: float) -> list[Detection]:
+    """``weak`` with each boat or vehicle raised by ``boost`` for each box of ``sure`` (the confident ones, one
+    per object) of its class abreast of it: parallel, side by side, at most about two widths away (see
+    ROW_*), for at most ROW_MAX_NEIGHBOURS of them. Moored boats and parked cars come in rows, so a weak peak
+    in a gap of a row is more likely an object than the same peak alone; neighbours must be confident, so
+    rows do not grow from weak ones. Chosen on the real training splits (docs/benchmarks.md)."""
+    if not weak or not sure:
+        return weak
+    cat = np.array([d.category for d in sure])
+    b = np.array([[d.cx_px, d.cy_px, d.length_px, d.width_px, d.yaw_deg] for d in sure], np.float64)
+    a = np.deg2rad(b[:, 4])
+    out = list(weak)
+    for i, d in enumerate(weak):
+        if d.category not in ROW_CATEGORIES or d.category not in thresholds:
+            continue
+        dx, dy = d.cx_px - b[:, 0], d.cy_px - b[:, 1]
+        along = dx * np.cos(a) - dy * np.sin(a)  # image rows grow downwards: the axis is (cos, -sin)
+        across = dx * np.sin(a) + dy * np.cos(a)
+        dyaw = np.abs((d.yaw_deg - b[:, 4] + 90.0) % 180.0 - 90.0)
+        longer, wider = np.maximum(d.length_px, b[:, 2]), np.maximum(d.width_px, b[:, 3])
+        abreast = ((cat == d.category) & (dyaw <= ROW_MAX_DYAW_DEG) & (np.abs(along) <= ROW_MAX_ALONG * longer)
+                   & (np.abs(across) > ROW_MIN_ACROSS * wider) & (np.abs(across) <= ROW_MAX_ACROSS * wider))
+        n = min(int(abreast.sum()), ROW_MAX_NEIGHBOURS)
+        if n:
+            out[i] = replace(d, score=float(d.score + boost * n))
+    return out
