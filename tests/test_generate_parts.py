@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -108,29 +108,6 @@ def test_isolated_pier_gets_a_connector():
     # beyond 4 x max_gap_m nothing is invented: the floating structure is reported instead
     r = build_piers([det("pier_walkway", 30, 20, 12, 2.5, 90)], cm, WALK, FINGER, PierConfig(max_gap_m=6))
     assert r.report["connectors_added"] == 0 and r.structure_on_land == (False,)
-
-
-def test_connectors_and_extensions_never_run_through_a_moored_boat():
-    """A boat between a floating walkway and the quay blocks the straight connector (the structure is left
-    afloat and the refusal counted); a boat beside the connector's path does not. The same for an extension
-    along the walkway's axis: it stops short of no land through a boat."""
-    cm = harbor_classes()  # land west of x = -30
-    walk = det("pier_walkway", -5, 20, 12, 2.5, 0)  # pointing at the quay, its end 19 m from it
-    across = det("boat", -22, 20, 10, 3.5, 90)  # moored across the connector's way
-    beside = det("boat", -22, 30, 10, 3.5, 90)  # 10 m north of the way
-    r = build_piers([walk, beside], cm, WALK, FINGER, PierConfig(max_gap_m=6))
-    assert r.report["connectors_added"] == 1 and r.report["connectors_blocked_by_boats"] == 0
-    r = build_piers([walk, across], cm, WALK, FINGER, PierConfig(max_gap_m=6))
-    assert r.report["connectors_added"] == 0 and r.report["connectors_blocked_by_boats"] == 1
-    assert r.structure_on_land == (False,)
-    unsure = replace(across, score=0.3)  # a boat the detector is unsure of is no obstacle
-    assert build_piers([walk, unsure], cm, WALK, FINGER, PierConfig(max_gap_m=6)).report["connectors_added"] == 1
-    # a walkway 4 m short of the quay, a boat in the gap: no extension through it
-    short = det("pier_walkway", -11, 0, 30, 2.5, 0)
-    assert max(build_piers([short], cm, WALK, FINGER, PierConfig(max_gap_m=6)).extensions_m) > 3
-    gap_boat = det("boat", -28, 0, 3.0, 6.0, 90)  # moored across the gap (3.5 m beam x 6 m)
-    r = build_piers([short, gap_boat], cm, WALK, FINGER, PierConfig(max_gap_m=6))
-    assert max(r.extensions_m) == 0.0
 
 
 def test_vegetation_rules():

@@ -21,11 +21,6 @@ from .types import ClassMap, Detection, Grid, HeightMap
 
 # a pier end this close to solid land touches the shore (the evaluation allows 0.75 m between footprint and land)
 LAND_TOUCH_M = 0.4
-# moored boats (detections at least this sure, ``consistency.SEED_MIN_SCORE``) are obstacles: an extension or a
-# connecting walkway never runs through one. Their footprints shrink by BOAT_CLEAR_M each side first, so a
-# walkway along a boat's side (boxes touching or overlapping a little) is no crossing
-BOAT_MIN_SCORE = 0.4
-BOAT_CLEAR_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -174,32 +169,8 @@ def detections_to_boxes(dets: list[Detection], grid: Grid) -> list[PierBox]:
     return out
 
 
-def boat_obstacles(dets: list[Detection], grid: Grid):
-    """The footprints (scene metres, shrunk by BOAT_CLEAR_M) of the sure boats, as one shapely geometry, or None."""
-    from shapely.geometry import Polygon
-    from shapely.ops import unary_union
-
-    polys = []
-    for d in dets:
-        if d.category != "boat" or d.score < BOAT_MIN_SCORE:
-            continue
-        c = d.corners_px()
-        x, y = grid.to_scene(c[:, 0], c[:, 1])
-        poly = Polygon(np.stack([x, y], 1)).buffer(-BOAT_CLEAR_M)
-        if not poly.is_empty:
-            polys.append(poly)
-    return unary_union(polys) if polys else None
-
-
-def _blocked(box: PierBox, boats) -> bool:
-    """Does ``box`` run through a boat (``boat_obstacles``)?"""
-    return boats is not None and box.polygon().intersects(boats)
-
-
-def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float,
-            boats=None) -> tuple[list[PierBox], list[float]]:
-    """Extend each box end that floats along its axis until it meets land or another box, unless the extension
-    would run through a boat (``boat_obstacles``): then that end stays.
+def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float) -> tuple[list[PierBox], list[float]]:
+    """Extend each box end that floats along its axis until it meets land or another box.
 
     The other boxes are queried through an STRtree, so the cost grows with the number of boxes, not its square."""
     import shapely
@@ -230,9 +201,6 @@ def _extend(boxes: list[PierBox], probe: LandProbe, cfg: PierConfig, step: float
             stop = np.flatnonzero(hit_box | probe.ends_touch(b, qs, LAND_TOUCH_M))
             if len(stop):
                 found = qs[stop[0]] + sign * u * min(0.5, step)  # a little overlap so the parts touch
-            if found is not None and boats is not None and _blocked(box_from_ends(end, found, b.width_m, b.role,
-                                                                                  b.score), boats):
-                found = None
             if found is None:
                 new_ends.append(end)
             else:
@@ -264,21 +232,19 @@ def _components(boxes: list[PierBox], tol: float = 0.4) -> list[list[int]]:
 
 def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finger_asset, config: PierConfig,
                 water_level_m: float = 0.0) -> PierResult:
-    """Chain library pier segments along detected walkways and fingers, connected to land. The boats among
-    ``dets`` are obstacles: no extension or connecting walkway runs through one (``boat_obstacles``)."""
+    """Chain library pier segments along detected walkways and fingers, connected to land."""
     grid = class_map.grid
     boxes = detections_to_boxes(dets, grid)
     if not boxes:
         return PierResult((), (), (), (), (), {"n_structures": 0, "n_segments": 0})
-    boats = boat_obstacles(dets, grid)
     probe = LandProbe(class_map, boxes)
     step = max(grid.gsd_m, 0.25)
-    boxes, ext = _extend(boxes, probe, config, step, boats)
+    boxes, ext = _extend(boxes, probe, config, step)
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
     # a structure that still does not reach land gets a connecting walkway to whatever is nearer: land, or a
     # structure that reaches land (detectors often break one long walkway into pieces)
-    blocked = _connect_floating(boxes, ext, comps, probe, config, boats)
+    _connect_floating(boxes, ext, comps, probe, config)
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
     on_land = tuple(_reaches_land(boxes, comp, probe) for comp in comps)
@@ -291,7 +257,6 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     report = {
         "n_structures": len(comps), "n_boxes": len(boxes), "n_segments": len(objects),
         "structures_on_land": int(sum(on_land)), "connectors_added": sum(b.role == "connector" for b in boxes),
-        "connectors_blocked_by_boats": blocked,
         "extended_m": [round(e, 2) for e in ext],
     }
     return PierResult(tuple(objects), tuple(boxes), tuple(tuple(c) for c in comps), on_land, tuple(ext), report)
@@ -302,10 +267,7 @@ def _reaches_land(boxes: list[PierBox], comp: list[int], probe: LandProbe) -> bo
 
 
 def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[int]], probe: LandProbe,
-                      config: PierConfig, boats=None) -> int:
-    """Connecting walkways (appended to ``boxes``) from each floating structure to the nearest land or grounded
-    structure; a link that would run through a boat is not made (the other kind is tried; with neither the
-    structure stays afloat). Returns how many links were refused for that reason."""
+                      config: PierConfig) -> None:
     from shapely.ops import nearest_points, unary_union
 
     limit = 8 * config.max_gap_m
@@ -324,8 +286,6 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
                     if id(comp) not in to_land or d < to_land[id(comp)][0]:
                         to_land[id(comp)] = (d, end, q, w)
     ground_shape = unary_union([boxes[i].polygon() for c in grounded for i in c]) if grounded else None
-    blocked = 0
-    no_deck: set[int] = set()  # floating structures whose link to a grounded deck runs through a boat
     # nearest first, so a chain of floating pieces grows outwards from the shore
     while floating:
         best = None
@@ -335,7 +295,7 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
                 d, end, q, _ = to_land[id(comp)]
                 if best is None or d < best[0]:
                     best = (d, comp, end, q, w, True)
-            if ground_shape is not None and not ground_shape.is_empty and id(comp) not in no_deck:
+            if ground_shape is not None and not ground_shape.is_empty:
                 pa, pb = nearest_points(shapes[id(comp)], ground_shape)
                 d = pa.distance(pb)
                 if d <= limit and (best is None or d < best[0]):
@@ -345,21 +305,12 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
         d, comp, a, b, w, land = best
         u = (b - a) / max(np.linalg.norm(b - a), 1e-6)
         into = max(1.5, w) if land else 0.3  # reach well onto land; just touch another deck
-        link = box_from_ends(a - u * 0.3, b + u * into, w, "connector", 0.5)
-        if _blocked(link, boats):  # try the other kind of link (land / another deck) before giving up
-            blocked += 1
-            if land:
-                del to_land[id(comp)]
-            else:
-                no_deck.add(id(comp))
-            continue
-        floating.remove(comp)
-        boxes.append(link)
+        boxes.append(box_from_ends(a - u * 0.3, b + u * into, w, "connector", 0.5))
         ext.append(0.0)
+        floating.remove(comp)
         grounded.append(comp + [len(boxes) - 1])
         new = unary_union([shapes[id(comp)], boxes[-1].polygon()])
         ground_shape = new if ground_shape is None else unary_union([ground_shape, new])
-    return blocked
 
 
 def _chain(b: PierBox, asset, prefix: str, structure: int, water_level_m: float) -> list[SceneObject]:

@@ -573,9 +573,6 @@ def piers_tiled(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     piers = [d for d in dets if d.category in PIER_CATEGORIES]
     if not piers:
         return [], {"n_structures": 0, "n_segments": 0, "tiles": 0}
-    boats = [d for d in dets if d.category == "boat"]  # obstacles to extensions and connectors
-    bx = np.array([d.cx_px for d in boats]).reshape(-1)
-    by = np.array([d.cy_px for d in boats]).reshape(-1)
     margin_m = 8.0 * config.max_gap_m + 30.0 if margin_m is None else margin_m
     margin = int(math.ceil(margin_m / g.gsd_m))
     reach = np.array([max(d.length_px, d.width_px) / 2.0 for d in piers])
@@ -596,8 +593,6 @@ def piers_tiled(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
         wc1 = int(min(g.width_px, max(c1 + margin, math.ceil(boxes[:, 0].max()) + margin)))
         wr1 = int(min(g.height_px, max(r1 + margin, math.ceil(boxes[:, 1].max()) + margin)))
         sub = ClassMap(np.ascontiguousarray(class_map.ids[wr0:wr1, wc0:wc1]), Grid(wc1 - wc0, wr1 - wr0, g.gsd_m))
-        inside = np.nonzero((bx >= wc0) & (bx < wc1) & (by >= wr0) & (by < wr1))[0]
-        sel += [boats[k] for k in inside]
         res = build_piers([_shift(d, -wc0, -wr0) for d in sel], sub, walkway_asset, finger_asset, config)
         # crop frame (origin at the crop's centre) -> scene frame
         dx = (wc0 + (wc1 - wc0) / 2.0 - g.width_px / 2.0) * g.gsd_m
