@@ -61,6 +61,19 @@ def test_a_boat_beside_water_extends_the_water_under_it():
     assert notes["water_from_boats_m2"] > 0
 
 
+def test_one_weak_boat_beside_water_is_no_evidence_but_a_weak_row_is():
+    """A lone boat the detector is barely sure of (a rock mole taken for a boat) leaves the class map alone;
+    three as unsure in a row still mark water."""
+    ids = np.full((400, 600), GRASS, np.uint8)
+    ids[:, :200] = WATER
+    cm = ClassMap(ids, Grid(600, 400, GSD))
+    new, notes = water_from_boats([_boat(210, 200, yaw=0.0, score=0.45)], cm, GSD)
+    assert (new.ids == WATER).sum() == (ids == WATER).sum() and notes == {}
+    row = [_boat(300, 100 + i * 14, yaw=0.0, score=0.45) for i in range(3)]  # moored side by side, far out
+    new, notes = water_from_boats(row, cm, GSD)
+    assert new.ids[114, 300] == WATER and notes["boat_clusters_made_water"] == 1
+
+
 def test_unsure_boats_do_not_move_the_water():
     ids = np.full((400, 600), ASPHALT, np.uint8)
     cm = ClassMap(ids, Grid(600, 400, GSD))

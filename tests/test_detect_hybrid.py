@@ -113,6 +113,21 @@ def test_union_boats_must_be_afloat_in_the_class_map():
     assert _afloat([wet, rock], None, 200, 100) == [wet, rock]
 
 
+def test_an_unsure_boat_over_a_pier_deck_gives_way_to_the_pier():
+    """A deck cannot lie under a moored boat: a boat box over most of a pier box, scored under SURE_BOAT_SCORE,
+    is dropped (a rock mole with its path taken for a 55 m boat); a sure one stays, and so does a weak boat
+    moored beside the pier (overlapping its edge only)."""
+    from coastforge.detection.hybrid import SURE_BOAT_SCORE, _off_piers
+    from coastforge.types import Detection
+
+    walkway = Detection("pier_walkway", 0.8, 200.0, 100.0, 180.0, 6.0, 0.0)
+    mole = Detection("boat", 0.41, 190.0, 100.0, 550.0, 146.0, 0.0)
+    sure = Detection("boat", SURE_BOAT_SCORE + 0.1, 190.0, 100.0, 550.0, 146.0, 0.0)
+    beside = Detection("boat", 0.41, 200.0, 110.0, 60.0, 16.0, 0.0)  # its edge 2 px over the deck's
+    assert _off_piers([mole, sure, beside], [walkway]) == [sure, beside]
+    assert _off_piers([mole], []) == [mole]
+
+
 def test_classical_pieces_of_a_net_boat_give_way_to_its_box():
     """A classical boat much shorter than the (weak) net box around it is a piece of that boat: the net's box
     replaces it; a classical box of about the net box's length, or outside it, stays."""

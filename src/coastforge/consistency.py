@@ -30,7 +30,10 @@ from .types import ClassMap, Detection
 CLUSTER_GAP_M = 4.0
 MIN_CLUSTER_BOATS = 3  # fewer boats far from water are no evidence of water (a boat on a trailer)
 SEED_MIN_SCORE = 0.4  # only fairly sure boats re-decide the class map
-TOUCH_WATER_M = 6.0  # a smaller cluster counts when water lies this close to it
+TOUCH_WATER_M = 6.0  # a smaller cluster counts when water lies this close to it...
+# ... when its best boat is at least this sure: one weak "boat" is weak evidence (a rock mole taken for a 55 m
+# boat, score 0.41, made a synthetic marina's jetty water), while a row of them is strong evidence at 0.4
+LONE_MIN_SCORE = 0.5
 OPEN_WATER_AROUND = 0.7  # a "vehicle" in water is a boat when this much of its surroundings is water too
 
 
@@ -65,12 +68,14 @@ def water_from_boats(dets: list[Detection], class_map: ClassMap, gsd_m: float) -
     near_water = cv2.dilate(water_small.view(np.uint8), cv2.getStructuringElement(
         cv2.MORPH_ELLIPSE, (2 * rt + 1, 2 * rt + 1))) > 0
     counts = np.zeros(n, int)
+    best = np.zeros(n)
     for d in boats:
         c = lab[min(hs - 1, int(d.cy_px / f)), min(ws - 1, int(d.cx_px / f))]
         counts[c] += 1
+        best[c] = max(best[c], d.score)
     touching = np.zeros(n, bool)
     touching[np.unique(lab[near_water & (lab > 0)])] = True
-    keep = (counts >= MIN_CLUSTER_BOATS) | touching
+    keep = (counts >= MIN_CLUSTER_BOATS) | (touching & (best >= LONE_MIN_SCORE))
     keep[0] = False
     sel = keep[lab] & ~water_small
     if not sel.any():

@@ -41,6 +41,9 @@ UNION_IOA = 0.3
 # std 6-20 or distance <= 6.8; real marina true ones: std >= 40, distance >= 6.4
 DECK_MAX_STD_L, DECK_MAX_DE = 20.0, 6.0
 AFLOAT_MIN_WATER = 0.5  # see ``_afloat``
+# a boat lying over more than this share of a pier box contradicts it; when the boat is also under
+# SURE_BOAT_SCORE, the pier wins (see ``_off_piers``)
+BOAT_OVER_PIER, SURE_BOAT_SCORE = 0.5, 0.5
 
 
 def classical_part(image: GeoImage, class_map: ClassMap | None, config: DetectConfig, seed: int = 0,
@@ -93,6 +96,7 @@ class HybridDetector:
         strong = [d for d in learned if self.learned.is_confident(d)] if floor is not None else learned
         objects = strong
         piers = [d for d in classical if d.category in PIERS]
+        objects = _off_piers(objects, piers)
         if not self.union:
             return objects + piers
         extra = [d for d in classical if d.category == "boat"]
@@ -112,6 +116,26 @@ class HybridDetector:
         merged = rotated_nms([*objects, *[_demote(d) for d in extra]], self.config.nms_iou,
                              ioa_threshold=UNION_IOA)
         return merged + piers
+
+
+def _off_piers(dets: list[Detection], piers: list[Detection]) -> list[Detection]:
+    """``dets`` without the boats that lie over most of a pier box (BOAT_OVER_PIER of its area) while scoring
+    under SURE_BOAT_SCORE: a deck cannot lie under a moored boat, so one of the two is wrong, and the boat is
+    the weaker evidence (renders: a rock mole with its path, taken for a 55 m boat at 0.41, over the walkway
+    the classical detector found on it; everything under a boat is later filled as water)."""
+    if not piers:
+        return dets
+    from shapely.geometry import Polygon
+
+    decks = [Polygon(p.corners_px()) for p in piers]
+    out = []
+    for d in dets:
+        if d.category == "boat" and d.score < SURE_BOAT_SCORE:
+            hull = Polygon(d.corners_px())
+            if any(q.area > 0 and hull.intersection(q).area > BOAT_OVER_PIER * q.area for q in decks):
+                continue
+        out.append(d)
+    return out
 
 
 def _inside(boxes: list[Detection], evidence: list[Detection]) -> np.ndarray:
