@@ -128,6 +128,23 @@ def test_an_unsure_boat_over_a_pier_deck_gives_way_to_the_pier():
     assert _off_piers([mole], []) == [mole]
 
 
+def test_a_pier_box_under_a_row_of_sure_boats_is_no_pier():
+    """Boats moor beside decks: a "walkway" more than a third under sure boats (a line along the hulls of a
+    moored row) is dropped; a finger between two boats whose boxes overlap its edges stays, and so does one
+    under boats the detector is unsure of."""
+    from coastforge.detection.hybrid import _piers_off_boats
+    from coastforge.types import Detection
+
+    row = [Detection("boat", 0.65, 100.0 + 14 * i, 100.0, 40.0, 12.0, 90.0) for i in range(4)]  # side by side
+    along = Detection("pier_walkway", 0.8, 121.0, 110.0, 56.0, 2.0, 0.0)  # across the four hulls
+    finger = Detection("pier_finger", 0.6, 200.0, 300.0, 40.0, 8.0, 90.0)
+    left = Detection("boat", 0.65, 190.0, 300.0, 40.0, 14.0, 90.0)  # 1 px over the finger's edge
+    right = Detection("boat", 0.65, 210.0, 300.0, 40.0, 14.0, 90.0)
+    assert _piers_off_boats([along, finger], [*row, left, right]) == [finger]
+    unsure = [Detection("boat", 0.45, d.cx_px, d.cy_px, d.length_px, d.width_px, d.yaw_deg) for d in row]
+    assert _piers_off_boats([along], unsure) == [along]
+
+
 def test_classical_pieces_of_a_net_boat_give_way_to_its_box():
     """A classical boat much shorter than the (weak) net box around it is a piece of that boat: the net's box
     replaces it; a classical box of about the net box's length, or outside it, stays."""
