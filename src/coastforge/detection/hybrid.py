@@ -20,7 +20,7 @@ learned box overlaps or mostly contains, when they pass these checks:
   boulders of a riprap bank.
 
 The net's boats and the classical pier boxes are checked against each other: an unsure boat over most of a
-pier box gives way to it (``_off_piers``), a pier box a third or more under sure boats goes (``_piers_off_boats``).
+pier box gives way to it (``_off_piers``), a pier box more than a third under sure boats goes (``_piers_off_boats``).
 
 On the real DOTA marina (also used to choose the union's rules) this takes recall from 0.63 to 0.89 at a
 precision of 0.85 (0.97 outside the right strip DOTA labelled only partly; 0.92 at 0.87 with the class
