@@ -301,3 +301,23 @@ def test_no_water_on_a_real_car_park():
     seg = learned.LearnedSegmenter(SegmentConfig())
     ids = seg.segment(read_image(path, gsd_m=0.125)).ids
     assert (ids == WATER).mean() < 0.01
+
+
+def test_false_water_weighs_pixels_wrongly_called_water():
+    """``seg_train --false-water W``: a pixel the network calls water where its label forbids water weighs W
+    times as much in the loss; right pixels and wrong pixels of other classes keep their weight."""
+    torch = pytest.importorskip("torch")
+    from coastforge.train import seg_train
+
+    sets = torch.from_numpy(seg_train.label_sets())
+    weights = torch.ones(seg_train.N_CODES)
+    logits = torch.zeros(1, N_CLASSES, 1, 3)
+    logits[0, WATER, 0, 0] = 3.0  # called water, labelled grass: a false water pixel
+    logits[0, WATER, 0, 1] = 3.0  # called water, labelled water: right
+    logits[0, 1, 0, 2] = 3.0  # called asphalt, labelled grass: wrong, but not water
+    y = torch.tensor([[[GRASS, WATER, GRASS]]])
+    nll = [float(seg_train.set_loss(torch, logits[..., i:i + 1], y[..., i:i + 1], sets, weights)) for i in range(3)]
+    plain = float(seg_train.set_loss(torch, logits, y, sets, weights))
+    heavy = float(seg_train.set_loss(torch, logits, y, sets, weights, false_water=4.0))
+    assert plain == pytest.approx(sum(nll) / 3, rel=1e-5)
+    assert heavy == pytest.approx((4 * nll[0] + nll[1] + nll[2]) / 6, rel=1e-5)

@@ -343,14 +343,19 @@ def code_weights(levels) -> np.ndarray:
     return np.r_[class_weights(levels), np.asarray(sets, np.float32)].astype(np.float32)
 
 
-def set_loss(torch, logits, y, sets, weights):
+def set_loss(torch, logits, y, sets, weights, false_water: float = 1.0):
     """Negative log of the probability summed over each pixel's allowed classes (plain cross-entropy for
-    an exact label), weighted by label code; IGNORE pixels are left out."""
+    an exact label), weighted by label code; IGNORE pixels are left out. ``false_water`` > 1 weighs the
+    pixels the network currently calls water (argmax) where water is not allowed that much more: online
+    hard negatives for the confusion that costs most on real photos (lawns, shadows, dark ground as water)."""
     valid = y != IGNORE
     yc = torch.where(valid, y, torch.zeros_like(y))
     allowed = sets[yc].permute(0, 3, 1, 2)  # (N, 8, H, W)
     nll = torch.logsumexp(logits, 1) - torch.logsumexp(logits.masked_fill(~allowed, -1e4), 1)
     w = weights[yc] * valid
+    if false_water != 1.0:
+        wrong = (logits.detach().argmax(1) == WATER) & ~allowed[:, WATER]
+        w = w * torch.where(wrong, torch.full_like(w, false_water), torch.ones_like(w))
     return (nll * w).sum() / w.sum().clamp(min=1e-6)
 
 
@@ -399,7 +404,7 @@ def _eval_marina(onnx_path: Path, meta: dict) -> str:
 def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch: int = 12, crop: int = 128,
           lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400,
           real: tuple[str, ...] = (), init: str | Path | None = None, arch: str = "unet4",
-          looks: str = "base") -> Path:
+          looks: str = "base", false_water: float = 1.0) -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -449,7 +454,8 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     cmd = (f"python -m coastforge.train.seg_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1}"
            f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
            f"--batch {batch} --crop {crop} --width {width} --seed {seed} --lr {lr}"
-           + (f" --arch {arch}" if arch != "unet4" else "") + (f" --looks {looks}" if looks != "base" else ""))
+           + (f" --arch {arch}" if arch != "unet4" else "") + (f" --looks {looks}" if looks != "base" else "")
+           + (f" --false-water {false_water:g}" if false_water != 1.0 else ""))
     if real:
         cmd += " --real " + ",".join(f"{k}:{v:g}" for k, v in shares.items())
     if init is not None:
@@ -466,6 +472,7 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
             "datasets": datasets,
             "training": {"seed": seed, "steps": steps, "batch": batch, "crop_px": crop, "lr": lr, "width": width,
                          "threads": 1, "levels": len(levels), "params": n_params, "looks": looks,
+                         "false_water": false_water,
                          "data_seeds": [min(seeds), max(seeds)], "command": cmd,
                          "init": str(init.name) if init is not None else None}}
     t_train = time.time()
@@ -473,7 +480,7 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     for step in range(1, steps + 1):
         x, y = sample_batch(levels, batch, crop, rng, centres, pools, looks)
         logits = net(torch.from_numpy(x))
-        loss = set_loss(torch, logits, torch.from_numpy(y), sets_t, weights_t)
+        loss = set_loss(torch, logits, torch.from_numpy(y), sets_t, weights_t, false_water)
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -511,11 +518,14 @@ def main(argv: list[str] | None = None) -> None:
                     help="unet4: 4 stages (1/16); unet5: a 1/32 stage too (wider context)")
     ap.add_argument("--looks", default="base", choices=LOOKS,
                     help="appearance randomisation: base, or wide (land classes dark/grey/other hues, cast shadows)")
+    ap.add_argument("--false-water", type=float, default=1.0,
+                    help="loss weight of the pixels currently called water where water is not allowed (1: plain)")
     a = ap.parse_args(argv)
     if a.crop % ARCH_MULTIPLE[a.arch]:
         raise InputError(f"--crop {a.crop} must be a multiple of {ARCH_MULTIPLE[a.arch]} for --arch {a.arch}")
     train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
-          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch, looks=a.looks)
+          eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch, looks=a.looks,
+          false_water=a.false_water)
 
 
 def parse_real(items: tuple[str, ...]) -> dict[str, float]:
