@@ -104,7 +104,7 @@ class DetectConfig:
     # averaged (an object one pass is unsure of is found when the other is sure; axes steadier)
     flip_tta: bool = True
     # learned backend: a boat or vehicle the network is unsure of gains this much score for each confident one
-    # of its class moored or parked beside it, parallel (at most two: ``LearnedDetector.row_context``)
+    # of its class moored or parked beside it, parallel (at most two: ``detection.learned.row_context``)
     row_context: float = 0.05
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0

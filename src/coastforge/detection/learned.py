@@ -222,7 +222,7 @@ class LearnedDetector:
                   "vehicle": (cfg.min_vehicle_length_m * 0.6, cfg.max_vehicle_length_m),
                   "buoy": (0.0, 4.0)}
         dets = []
-        boost = max(0.0, float(getattr(cfg, "row_context", 0.0)))
+        boost = max(0.0, float(cfg.row_context))
         reach = boost * ROW_MAX_NEIGHBOURS  # a candidate this far below its threshold may still reach it
         lowest = self.threshold - reach if floor is None else min(float(floor), self.threshold - reach)
         rows = self.run(work, max(1e-3, lowest))
@@ -248,7 +248,7 @@ class LearnedDetector:
                              ioa_threshold=0.8)
         weak = [d for d in dets if not self.is_confident(d)]  # evidence only: not de-duplicated (speed)
         if boost > 0 and weak:  # weak ones abreast of the (de-duplicated) confident ones may join them
-            weak = row_context(weak, strong, self.class_threshold, boost)
+            weak = row_context(weak, strong, boost)
             if any(self.is_confident(d) for d in weak):
                 strong = rotated_nms(strong + [d for d in weak if self.is_confident(d)], cfg.nms_iou,
                                      class_aware=False, ioa_threshold=0.8)
@@ -305,8 +305,7 @@ class LearnedDetector:
         return out
 
 
-def row_context(weak: list[Detection], sure: list[Detection], thresholds: dict[str, float],
-                boost: float) -> list[Detection]:
+def row_context(weak: list[Detection], sure: list[Detection], boost: float) -> list[Detection]:
     """``weak`` with each boat or vehicle raised by ``boost`` for each box of ``sure`` (the confident ones, one
     per object) of its class abreast of it: parallel, side by side, at most about two widths away (see
     ROW_*), for at most ROW_MAX_NEIGHBOURS of them. Moored boats and parked cars come in rows, so a weak peak
@@ -319,7 +318,7 @@ def row_context(weak: list[Detection], sure: list[Detection], thresholds: dict[s
     a = np.deg2rad(b[:, 4])
     out = list(weak)
     for i, d in enumerate(weak):
-        if d.category not in ROW_CATEGORIES or d.category not in thresholds:
+        if d.category not in ROW_CATEGORIES:
             continue
         dx, dy = d.cx_px - b[:, 0], d.cy_px - b[:, 1]
         along = dx * np.cos(a) - dy * np.sin(a)  # image rows grow downwards: the axis is (cos, -sin)
