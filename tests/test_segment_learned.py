@@ -321,3 +321,23 @@ def test_false_water_weighs_pixels_wrongly_called_water():
     heavy = float(seg_train.set_loss(torch, logits, y, sets, weights, false_water=4.0))
     assert plain == pytest.approx(sum(nll) / 3, rel=1e-5)
     assert heavy == pytest.approx((4 * nll[0] + nll[1] + nll[2]) / 6, rel=1e-5)
+
+
+def test_dubai_tiles_can_be_held_out_for_an_inner_check():
+    """``seg_train --hold tile_4`` leaves a training tile out (so a recipe can be judged on unseen tiles
+    without looking at the validation tiles); a tile that is not a training tile is a clear error."""
+    from coastforge import realdata
+    from coastforge.train import seg_train
+
+    items = realdata.dubai_items()
+    if not items:
+        pytest.skip(f"../shared/data/real/landcover_dubai not found under {realdata.SHARED}")
+    train_tiles = sorted({n.split("/")[0] for n, _i, _m, v in items if not v})
+    held = train_tiles[0]
+    n_all = sum(not v for _n, _i, _m, v in items)
+    n_held = sum(not v and n.startswith(held + "/") for n, _i, _m, v in items)
+    kept = seg_train.load_dubai(1.2, hold=(held,))
+    assert len(kept) == n_all - n_held > 0
+    assert all(lab.dtype == np.uint8 and rgb.shape[:2] == lab.shape for rgb, lab in kept)
+    with pytest.raises(InputError, match="not a Dubai training tile"):
+        seg_train.load_dubai(1.2, hold=(realdata.DUBAI_VAL_TILES[0],))

@@ -18,6 +18,10 @@ lower the false water on the Dubai validation tiles and cost the DOTA marina its
 dark/grey land classes and cast shadows against the dark lawns and shadows taken for water there, was tried
 from the shipped model too: Dubai training tiles improved, the validation tiles did not; see docs/benchmarks.md.)
 
+``--hold tile_4`` leaves Dubai training tiles out: a recipe is judged on tiles it never saw (an inner check)
+while the validation tiles stay unseen. ``--work-gsd`` sets the working resolution (a coarser one widens the
+context a crop spans; docs/benchmarks.md has the 1.2 m/px trial).
+
 ``--real`` mixes in the training splits of real sets in ``../shared/data`` (never the validation groups
 of ``coastforge.realdata``): ``dubai`` (land-cover masks), ``ships`` and ``cars`` (boxes as weak labels:
 a moored or anchored boat is water in our class map, a car stands on pavement; all other pixels of those
@@ -137,17 +141,24 @@ def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tup
     return out
 
 
-def load_dubai(work_gsd_m: float = WORK_GSD_M, val: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
+def load_dubai(work_gsd_m: float = WORK_GSD_M, val: bool = False,
+               hold: tuple[str, ...] = ()) -> list[tuple[np.ndarray, np.ndarray]]:
     """Dubai training (or validation) tiles at ``work_gsd_m`` (from the nominal 0.6 m/px) with label codes:
-    water REAL_WATER, road and roofs SET_PAVED, vegetation SET_VEGETATION, unpaved land SET_BARE, unlabeled IGNORE."""
+    water REAL_WATER, road and roofs SET_PAVED, vegetation SET_VEGETATION, unpaved land SET_BARE, unlabeled IGNORE.
+    ``hold``: training tiles left out (an inner check on unseen tiles that keeps the validation tiles unseen)."""
     from .. import realdata
 
     lut = np.full(256, IGNORE, np.uint8)
     lut[0], lut[1], lut[2], lut[3] = REAL_WATER, SET_PAVED, SET_VEGETATION, SET_BARE
     lut[realdata.BUILDING] = SET_PAVED  # roofs count as paved for now (never water or vegetation)
+    items = realdata.dubai_items()
+    tiles = {n.split("/")[0] for n, _i, _m, v in items if not v}
+    if set(hold) - tiles:
+        raise InputError(f"--hold {','.join(sorted(set(hold) - tiles))}: not a Dubai training tile; "
+                         f"the training tiles are {', '.join(sorted(tiles)) or 'none (../shared/data absent)'}")
     out = []
-    for _name, img, mask, is_val in realdata.dubai_items():
-        if is_val != val:
+    for name, img, mask, is_val in items:
+        if is_val != val or name.split("/")[0] in hold:
             continue
         rgb, _s = resample_to_gsd(realdata.read_rgb(img), DUBAI_NOMINAL_GSD_M, work_gsd_m)
         codes = lut[realdata.dubai_coarse(realdata.read_rgb(mask))]
@@ -404,7 +415,8 @@ def _eval_marina(onnx_path: Path, meta: dict) -> str:
 def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch: int = 12, crop: int = 128,
           lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400,
           real: tuple[str, ...] = (), init: str | Path | None = None, arch: str = "unet4",
-          looks: str = "base", false_water: float = 1.0) -> Path:
+          looks: str = "base", false_water: float = 1.0, work_gsd_m: float = WORK_GSD_M,
+          hold: tuple[str, ...] = ()) -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -417,14 +429,14 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     data_dir, out = Path(data_dir), Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
-    levels = load_levels(data_dir)
+    levels = load_levels(data_dir, work_gsd_m)
     seeds = [int(it["seed"]) for it in json.loads((data_dir / "index.json").read_text())["items"]]
     weights = code_weights(levels)
     centres = class_centres(levels, stage_rng(seed, "train", "seg", "centres"))
     shares = parse_real(tuple(real))
     pools, counts = [], {}
     for name, share in shares.items():
-        lv = load_dubai() if name == "dubai" else load_boxes_as_labels(name)
+        lv = load_dubai(work_gsd_m, hold=hold) if name == "dubai" else load_boxes_as_labels(name, work_gsd_m)
         counts[name] = len(lv)
         pools.append((lv, class_centres(lv, stage_rng(seed, "train", "seg", f"{name}-centres")), SCALE_RANGE[name],
                       share))
@@ -455,7 +467,9 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
            f" && python -m coastforge.train.seg_train --data DATA --out OUT --steps {steps} "
            f"--batch {batch} --crop {crop} --width {width} --seed {seed} --lr {lr}"
            + (f" --arch {arch}" if arch != "unet4" else "") + (f" --looks {looks}" if looks != "base" else "")
-           + (f" --false-water {false_water:g}" if false_water != 1.0 else ""))
+           + (f" --false-water {false_water:g}" if false_water != 1.0 else "")
+           + (f" --work-gsd {work_gsd_m:g}" if work_gsd_m != WORK_GSD_M else "")
+           + (f" --hold {','.join(hold)}" if hold else ""))
     if real:
         cmd += " --real " + ",".join(f"{k}:{v:g}" for k, v in shares.items())
     if init is not None:
@@ -465,14 +479,14 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     # real photos at ~0.4-1.2 m/px (Dubai with its scale jitter, the ship photos) widen the range of GSDs the
     # network may be trusted with; renders alone cover ~0.04-0.6 m/px
     gsd_range = [0.04, 1.2] if real else [0.04, 0.6]
-    meta = {"format": FORMAT, "classes": list(CLASS_NAMES), "work_gsd_m": WORK_GSD_M,
+    meta = {"format": FORMAT, "classes": list(CLASS_NAMES), "work_gsd_m": work_gsd_m,
             "multiple": ARCH_MULTIPLE[arch], "overlap_px": ARCH_OVERLAP_PX[arch], "arch": arch,
             "gsd_range_m": gsd_range,
             "input": "RGB 0..1, NCHW", "output": "logits (1, 8, H, W)",
             "datasets": datasets,
             "training": {"seed": seed, "steps": steps, "batch": batch, "crop_px": crop, "lr": lr, "width": width,
                          "threads": 1, "levels": len(levels), "params": n_params, "looks": looks,
-                         "false_water": false_water,
+                         "false_water": false_water, "held_out_tiles": list(hold),
                          "data_seeds": [min(seeds), max(seeds)], "command": cmd,
                          "init": str(init.name) if init is not None else None}}
     t_train = time.time()
@@ -520,12 +534,19 @@ def main(argv: list[str] | None = None) -> None:
                     help="appearance randomisation: base, or wide (land classes dark/grey/other hues, cast shadows)")
     ap.add_argument("--false-water", type=float, default=1.0,
                     help="loss weight of the pixels currently called water where water is not allowed (1: plain)")
+    ap.add_argument("--work-gsd", type=float, default=WORK_GSD_M,
+                    help=f"the network's working resolution in m/px (default {WORK_GSD_M}; coarser: wider context)")
+    ap.add_argument("--hold", default="",
+                    help="comma list of Dubai training tiles to leave out (e.g. tile_4): an inner check on tiles "
+                         "the model never saw, so that the validation tiles stay unseen")
     a = ap.parse_args(argv)
+    if not 0.05 <= a.work_gsd <= 5.0:
+        raise InputError(f"--work-gsd {a.work_gsd:g}: give the working resolution in metres per pixel (0.05-5)")
     if a.crop % ARCH_MULTIPLE[a.arch]:
         raise InputError(f"--crop {a.crop} must be a multiple of {ARCH_MULTIPLE[a.arch]} for --arch {a.arch}")
     train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
           eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch, looks=a.looks,
-          false_water=a.false_water)
+          false_water=a.false_water, work_gsd_m=a.work_gsd, hold=tuple(t for t in a.hold.split(",") if t))
 
 
 def parse_real(items: tuple[str, ...]) -> dict[str, float]:
