@@ -102,7 +102,7 @@ def test_pier_end_just_short_of_the_quay_is_extended_to_touch_it(gap_m):
 
 def test_isolated_pier_gets_a_connector():
     cm = harbor_classes()
-    dets = [det("pier_walkway", -12, 20, 12, 2.5, 90)]  # 18 m from the quay, parallel to it
+    dets = [det("pier_walkway", -12, 20, 20, 2.5, 90)]  # 18 m from the quay, parallel to it, 20 m long
     r = build_piers(dets, cm, WALK, FINGER, PierConfig(max_gap_m=6))
     assert r.report["connectors_added"] == 1 and all(r.structure_on_land)
     # beyond 4 x max_gap_m nothing is invented: the floating structure is reported instead
@@ -148,3 +148,29 @@ def test_vegetation_rules():
     assert set(r.masks) >= {"trees", "rocks"} and r.masks["trees"].dtype == np.uint8
     again = scatter(ids, h, GRID, assets, [car], VegetationConfig(), seed=3).vegetation
     assert np.array_equal(again.x_m, v.x_m)
+
+
+def test_a_short_piece_far_out_is_dropped_not_connected():
+    """A connector longer than all the deck seen of a floating piece would invent more pier than was found: the
+    piece (more likely a hull or a wake read as deck) is dropped, and nothing is built across the water."""
+    cm = harbor_classes()
+    r = build_piers([det("pier_walkway", -12, 20, 8, 2.5, 90)], cm, WALK, FINGER, PierConfig(max_gap_m=6))
+    assert r.objects == () and r.report["dropped_floating"] == 1 and r.report.get("connectors_added", 0) == 0
+    # the same piece 4.5 m beside a grounded walkway (14 m from the quay) attaches to the walkway instead
+    dets = [det("pier_walkway", -20, 0, 20, 2.5, 0), det("pier_walkway", -12, 7, 8, 2.5, 0)]
+    r = build_piers(dets, cm, WALK, FINGER, PierConfig(max_gap_m=6))
+    assert r.report["dropped_floating"] == 0 and r.report["connectors_added"] == 1 and all(r.structure_on_land)
+    conn = [b for b in r.boxes if b.role == "connector"]
+    assert conn[0].length_m < 7
+
+
+def test_report_says_when_floating_pier_pieces_were_left_out():
+    from coastforge.report.sections import piers_section
+
+    cm = harbor_classes()
+    r = build_piers([det("pier_walkway", -12, 20, 8, 2.5, 90)], cm, WALK, FINGER, PierConfig(max_gap_m=6))
+    s = Scene("t", 0, GRID.gsd_m, GRID.extent_m, classes=cm.ids, objects=r.objects,
+              provenance={"piers": r.report})
+    assert "1 floating pier piece left out" in piers_section(s, None)
+    s = Scene("t", 0, GRID.gsd_m, GRID.extent_m, classes=cm.ids, objects=r.objects, provenance={})
+    assert "left out" not in piers_section(s, None)

@@ -1,7 +1,9 @@
 """Pier structures: walkway and finger boxes → chains of library pier segments, connected to land.
 
 Each detected walkway/finger box is extended along its axis to reach land or the pier it attaches to
-(within ``max_gap_m``); a structure that still floats gets a connecting walkway to the nearest land.
+(within ``max_gap_m``); a structure that still floats gets a connecting walkway to the nearest land, unless
+that walkway would be longer than the deck the structure has: a missing stretch longer than everything seen of
+the pier says the piece is more likely a false detection (a hull, a wake) than a pier, and it is dropped.
 Each box then becomes ``n = ceil(length / segment length)`` segments scaled to fit exactly. The paper's
 piers sometimes did not connect; here connectivity is checked and reported.
 """
@@ -244,7 +246,12 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     comps = _components(boxes)
     # a structure that still does not reach land gets a connecting walkway to whatever is nearer: land, or a
     # structure that reaches land (detectors often break one long walkway into pieces)
-    _connect_floating(boxes, ext, comps, probe, config)
+    dropped = _connect_floating(boxes, ext, comps, probe, config)
+    if dropped:
+        keep = [i for i in range(len(boxes)) if i not in dropped]
+        boxes, ext = [boxes[i] for i in keep], [ext[i] for i in keep]
+    if not boxes:
+        return PierResult((), (), (), (), (), {"n_structures": 0, "n_segments": 0, "dropped_floating": len(dropped)})
     probe = LandProbe(class_map, boxes)
     comps = _components(boxes)
     on_land = tuple(_reaches_land(boxes, comp, probe) for comp in comps)
@@ -257,6 +264,7 @@ def build_piers(dets: list[Detection], class_map: ClassMap, walkway_asset, finge
     report = {
         "n_structures": len(comps), "n_boxes": len(boxes), "n_segments": len(objects),
         "structures_on_land": int(sum(on_land)), "connectors_added": sum(b.role == "connector" for b in boxes),
+        "dropped_floating": len(dropped),
         "extended_m": [round(e, 2) for e in ext],
     }
     return PierResult(tuple(objects), tuple(boxes), tuple(tuple(c) for c in comps), on_land, tuple(ext), report)
@@ -267,7 +275,9 @@ def _reaches_land(boxes: list[PierBox], comp: list[int], probe: LandProbe) -> bo
 
 
 def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[int]], probe: LandProbe,
-                      config: PierConfig) -> None:
+                      config: PierConfig) -> set[int]:
+    """Connect each floating group to land or to a grounded structure (appending connector boxes); returns the
+    box indices of the groups left out because their connector would be longer than their own deck."""
     from shapely.ops import nearest_points, unary_union
 
     limit = 8 * config.max_gap_m
@@ -286,20 +296,29 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
                     if id(comp) not in to_land or d < to_land[id(comp)][0]:
                         to_land[id(comp)] = (d, end, q, w)
     ground_shape = unary_union([boxes[i].polygon() for c in grounded for i in c]) if grounded else None
-    # nearest first, so a chain of floating pieces grows outwards from the shore
+    # the longest plausible connector of a group: the deck it has (at least max_gap_m, which _extend bridges anyway)
+    reach = {id(c): max(config.max_gap_m, sum(boxes[i].length_m for i in c)) for c in floating}
+    # nearest first, so a chain of floating pieces grows outwards from the shore; a group whose way to land is
+    # longer than its reach waits (another group connected later may come closer) and is dropped at the end
+    too_far: set[int] = set()
     while floating:
         best = None
         for comp in floating:
             w = max(1.5, max(boxes[i].width_m for i in comp))
+            options = []
             if id(comp) in to_land:
                 d, end, q, _ = to_land[id(comp)]
-                if best is None or d < best[0]:
-                    best = (d, comp, end, q, w, True)
+                options.append((d, comp, end, q, w, True))
             if ground_shape is not None and not ground_shape.is_empty:
                 pa, pb = nearest_points(shapes[id(comp)], ground_shape)
                 d = pa.distance(pb)
-                if d <= limit and (best is None or d < best[0]):
-                    best = (d, comp, np.array(pa.coords[0]), np.array(pb.coords[0]), w, False)
+                if d <= limit:
+                    options.append((d, comp, np.array(pa.coords[0]), np.array(pb.coords[0]), w, False))
+            for opt in options:
+                if opt[0] > reach[id(comp)]:
+                    too_far.add(id(comp))
+                elif best is None or opt[0] < best[0]:
+                    best = opt
         if best is None:
             break
         d, comp, a, b, w, land = best
@@ -311,6 +330,10 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
         grounded.append(comp + [len(boxes) - 1])
         new = unary_union([shapes[id(comp)], boxes[-1].polygon()])
         ground_shape = new if ground_shape is None else unary_union([ground_shape, new])
+    # still floating although land or a pier lies within reach of a connector: too far for what was seen of it
+    # (a group with nothing within 8 max_gap_m stays as it is: the shore may lie outside the image)
+    dropped = {i for comp in floating if id(comp) in too_far for i in comp}
+    return dropped
 
 
 def _chain(b: PierBox, asset, prefix: str, structure: int, water_level_m: float) -> list[SceneObject]:

@@ -250,8 +250,12 @@ def piers_section(scene: Scene, base: np.ndarray | None) -> str:
     from ..evaluate import pier_connectivity
 
     piers = [o for o in scene.objects if o.category == "pier"]
+    dropped = int(((scene.provenance or {}).get("piers") or {}).get("dropped_floating") or 0)
+    dropped_text = (f" {dropped} floating pier piece{'s' if dropped > 1 else ''} left out: the walkway to land "
+                    "would have been longer than the deck found, so more likely a hull or a wake than a pier."
+                    if dropped else "")
     if not piers:
-        return note("No pier structures in this scene.")
+        return note("No pier structures in this scene." + dropped_text)
     conn = pier_connectivity(scene)
     grid = scene.grid
     polys, edges = _pier_graph(piers)
@@ -331,7 +335,7 @@ def piers_section(scene: Scene, base: np.ndarray | None) -> str:
                  f"{100 * (conn['structures_on_land'] or 0):.0f}%: "
                  + ('<b class="ok">all connected</b>' if ok else '<b class="bad">not all connected</b>')
                  + ". Colours: one per structure; white lines join touching segments; red outlines: "
-                 "disconnected segments.")
+                 "disconnected segments." + dropped_text)
     return (text + '<div class="pair">' + figure(data_uri(canvas), "Pier segments, structures and connections")
             + "<div>" + table(["structure", "segments", "deck area (m²)", "assets", "reaches land",
                                 "disconnected"], rows) + "</div></div>")
