@@ -341,3 +341,26 @@ def test_dubai_tiles_can_be_held_out_for_an_inner_check():
     assert all(lab.dtype == np.uint8 and rgb.shape[:2] == lab.shape for rgb, lab in kept)
     with pytest.raises(InputError, match="not a Dubai training tile"):
         seg_train.load_dubai(1.2, hold=(realdata.DUBAI_VAL_TILES[0],))
+
+
+def test_ships_self_training_labels(monkeypatch):
+    """``--real shipsself``: on harbour photos the teacher's sure water and every labelled boat are water, its
+    sure land is land, the rest is left out; a missing teacher is a clear error."""
+    from coastforge import realdata
+    from coastforge.train import seg_train
+
+    items = [it for it in realdata.ships_items() if not it.val and len(it.boxes) >= 3][:2]
+    if not items:
+        pytest.skip(f"../shared/data/real/ships_aerial not found under {realdata.SHARED}")
+    monkeypatch.setattr(realdata, "ships_items", lambda: items)
+    out = seg_train.load_ships_self(learned.default_weights(), 0.3)
+    assert len(out) == 2
+    for (rgb, lab), it in zip(out, items):
+        assert rgb.shape[:2] == lab.shape
+        assert set(np.unique(lab)) <= {seg_train.IGNORE, seg_train.REAL_WATER, seg_train.SET_LAND}
+        s = lab.shape[1] / realdata.read_rgb(it.path).shape[1]
+        x0, y0, x1, y1 = it.boxes[0] * s
+        assert np.all(lab[int(round(y0)):int(round(y1)), int(round(x0)):int(round(x1))] == seg_train.REAL_WATER)
+        assert (lab == seg_train.SET_LAND).any() or (lab == seg_train.REAL_WATER).mean() > 0.5
+    with pytest.raises(InputError, match="teacher"):
+        seg_train.load_ships_self("no/such/model.onnx")

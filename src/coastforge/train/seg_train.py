@@ -22,6 +22,9 @@ from the shipped model too: Dubai training tiles improved, the validation tiles 
 while the validation tiles stay unseen. ``--work-gsd`` sets the working resolution (a coarser one widens the
 context a crop spans; docs/benchmarks.md has the 1.2 m/px trial).
 
+``shipsself`` (``--real``) labels the ships_aerial training photos with a teacher's sure calls (``--teacher``,
+default ``--init``): self-training on real harbour water; tried with ``--false-water`` and not shipped.
+
 ``--real`` mixes in the training splits of real sets in ``../shared/data`` (never the validation groups
 of ``coastforge.realdata``): ``dubai`` (land-cover masks), ``ships`` and ``cars`` (boxes as weak labels:
 a moored or anchored boat is water in our class map, a car stands on pavement; all other pixels of those
@@ -101,17 +104,22 @@ DATASETS = {
     "cars": {"name": "KIT AIS vehicle data (Munich crops), training crops: vehicle boxes as weak pavement labels "
                      "(parked and driving cars stand on pavement), the rest unlabelled",
              "licence": "CC BY 3.0", "attribution": "KIT IPF; via github.com/jekhor/aerial-cars-dataset (d2ed927f)"},
+    "shipsself": {"name": "Ship Detection from Aerial Images (Kaggle andrewmvd), training groups: self-training "
+                          "labels, water where the teacher segmenter (the model trained from) is >= 0.9 sure of "
+                          "water or a boat box lies, land where it is >= 0.9 sure of land, the rest unlabelled",
+                  "licence": "CC0 1.0 as reported (not verified); the imagery's own terms may also apply",
+                  "attribution": "andrewmvd; via github.com/urielFamien95/RESNET_101 (66af054f)"},
     "streets": {"name": "KIT AIS vehicle data (Munich crops), training crops: every pixel land (two inland street "
                         "scenes with no water: tree canopy, shadows and dark cars as negatives for water), "
                         "vehicle boxes pavement",
                 "licence": "CC BY 3.0", "attribution": "KIT IPF; via github.com/jekhor/aerial-cars-dataset (d2ed927f)"},
 }
-REAL_SETS = ("dubai", "ships", "cars", "streets")
+REAL_SETS = ("dubai", "ships", "cars", "streets", "shipsself")
 # share of each batch from each real set when it is used (the rest: renders)
-REAL_SHARES = {"dubai": 0.3, "ships": 0.1, "cars": 0.1, "streets": 0.1}
+REAL_SHARES = {"dubai": 0.3, "ships": 0.1, "cars": 0.1, "streets": 0.1, "shipsself": 0.15}
 # scale jitter of each pool (its GSD is known to this factor at best): renders, Dubai (nominal GSD), weak sets
 SCALE_RANGE = {"synthetic": (0.75, 1.33), "dubai": (0.5, 1.6), "ships": (0.6, 1.5), "cars": (0.8, 1.25),
-               "streets": (0.8, 1.25)}
+               "streets": (0.8, 1.25), "shipsself": (0.6, 1.5)}
 
 
 def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -138,6 +146,42 @@ def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tup
         out.append((rgb, lab))
     if not out:
         raise InputError(f"no {which} training images under {realdata.SHARED}; --real {which} needs ../shared/data")
+    return out
+
+
+SELF_SURE = 0.9  # the teacher's probability of water (or of land) that makes a self-training label
+
+
+def load_ships_self(teacher: str | Path, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Self-training labels on the ``ships_aerial`` training images (harbours, marinas, anchorages: water of
+    every colour): REAL_WATER where the ``teacher`` segmenter (an exported segmenter.onnx) is at least SELF_SURE
+    sure of water or a labelled boat lies (moored boats are water in our class map), SET_LAND where it is that
+    sure of land, IGNORE between. They keep the dark marina water the teacher knows while other losses (such
+    as ``--false-water``) push the network away from dark land."""
+    from .. import realdata
+    from ..segmentation.learned import LearnedSegmenter
+
+    teacher = Path(teacher)
+    if not teacher.is_file():
+        raise InputError(f"--real shipsself needs a teacher model: {teacher} does not exist (give --init)")
+    seg = LearnedSegmenter(weights=teacher)
+    t_gsd = float(seg.meta["work_gsd_m"])
+    out = []
+    for it in realdata.ships_items():
+        if it.val or not len(it.boxes):
+            continue
+        gsd = realdata.ships_gsd(it.boxes)
+        rgb, s = resample_to_gsd(realdata.read_rgb(it.path), gsd, work_gsd_m)
+        small, _ = resample_to_gsd(rgb, work_gsd_m, t_gsd)
+        pw = cv2.resize(seg.proba_small(small)[..., WATER], rgb.shape[1::-1], interpolation=cv2.INTER_LINEAR)
+        lab = np.full(rgb.shape[:2], IGNORE, np.uint8)
+        lab[pw >= SELF_SURE] = REAL_WATER
+        lab[pw <= 1.0 - SELF_SURE] = SET_LAND
+        for x0, y0, x1, y1 in it.boxes * s:
+            lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = REAL_WATER
+        out.append((rgb, lab))
+    if not out:
+        raise InputError(f"no ships_aerial training images under {realdata.SHARED}; --real shipsself needs ../shared/data")
     return out
 
 
@@ -416,7 +460,7 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
           lr: float = 3e-3, width: int = 16, seed: int = 1, eval_every: int = 400,
           real: tuple[str, ...] = (), init: str | Path | None = None, arch: str = "unet4",
           looks: str = "base", false_water: float = 1.0, work_gsd_m: float = WORK_GSD_M,
-          hold: tuple[str, ...] = ()) -> Path:
+          hold: tuple[str, ...] = (), teacher: str | Path | None = None) -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -436,7 +480,12 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     shares = parse_real(tuple(real))
     pools, counts = [], {}
     for name, share in shares.items():
-        lv = load_dubai(work_gsd_m, hold=hold) if name == "dubai" else load_boxes_as_labels(name, work_gsd_m)
+        teacher = teacher or init
+        if name == "shipsself" and teacher is None:
+            raise InputError("--real shipsself learns from a teacher model's sure calls: give --teacher or --init")
+        lv = (load_dubai(work_gsd_m, hold=hold) if name == "dubai"
+              else load_ships_self(str(teacher), work_gsd_m) if name == "shipsself"
+              else load_boxes_as_labels(name, work_gsd_m))
         counts[name] = len(lv)
         pools.append((lv, class_centres(lv, stage_rng(seed, "train", "seg", f"{name}-centres")), SCALE_RANGE[name],
                       share))
@@ -474,6 +523,8 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
         cmd += " --real " + ",".join(f"{k}:{v:g}" for k, v in shares.items())
     if init is not None:
         cmd += f" --init {init.name}"
+    if teacher is not None and "shipsself" in shares:
+        cmd += f" --teacher {Path(teacher).name}"
     datasets = [DATASETS["synthetic"]] + [{**DATASETS[k], "images": n, "batch_share": shares[k]}
                                           for k, n in counts.items()]
     # real photos at ~0.4-1.2 m/px (Dubai with its scale jitter, the ship photos) widen the range of GSDs the
@@ -536,6 +587,8 @@ def main(argv: list[str] | None = None) -> None:
                     help="loss weight of the pixels currently called water where water is not allowed (1: plain)")
     ap.add_argument("--work-gsd", type=float, default=WORK_GSD_M,
                     help=f"the network's working resolution in m/px (default {WORK_GSD_M}; coarser: wider context)")
+    ap.add_argument("--teacher", default=None,
+                    help="the segmenter.onnx whose sure calls label --real shipsself (default: --init)")
     ap.add_argument("--hold", default="",
                     help="comma list of Dubai training tiles to leave out (e.g. tile_4): an inner check on tiles "
                          "the model never saw, so that the validation tiles stay unseen")
@@ -546,7 +599,8 @@ def main(argv: list[str] | None = None) -> None:
         raise InputError(f"--crop {a.crop} must be a multiple of {ARCH_MULTIPLE[a.arch]} for --arch {a.arch}")
     train(a.data, a.out, steps=a.steps, batch=a.batch, crop=a.crop, lr=a.lr, width=a.width, seed=a.seed,
           eval_every=a.eval_every, real=tuple(r for r in a.real.split(",") if r), init=a.init, arch=a.arch, looks=a.looks,
-          false_water=a.false_water, work_gsd_m=a.work_gsd, hold=tuple(t for t in a.hold.split(",") if t))
+          false_water=a.false_water, work_gsd_m=a.work_gsd, hold=tuple(t for t in a.hold.split(",") if t),
+          teacher=a.teacher)
 
 
 def parse_real(items: tuple[str, ...]) -> dict[str, float]:
