@@ -332,8 +332,7 @@ def _connect_floating(boxes: list[PierBox], ext: list[float], comps: list[list[i
         ground_shape = new if ground_shape is None else unary_union([ground_shape, new])
     # still floating although land or a pier lies within reach of a connector: too far for what was seen of it
     # (a group with nothing within 8 max_gap_m stays as it is: the shore may lie outside the image)
-    dropped = {i for comp in floating if id(comp) in too_far for i in comp}
-    return dropped
+    return {i for comp in floating if id(comp) in too_far for i in comp}
 
 
 def _chain(b: PierBox, asset, prefix: str, structure: int, water_level_m: float) -> list[SceneObject]:

@@ -122,6 +122,13 @@ SCALE_RANGE = {"synthetic": (0.75, 1.33), "dubai": (0.5, 1.6), "ships": (0.6, 1.
                "streets": (0.8, 1.25), "shipsself": (0.6, 1.5)}
 
 
+def _paint_boxes(lab: np.ndarray, boxes: np.ndarray, code: int) -> np.ndarray:
+    """``lab`` with every axis-aligned box (x0, y0, x1, y1 in its pixels, ends included) set to ``code``."""
+    for x0, y0, x1, y1 in boxes:
+        lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = code
+    return lab
+
+
 def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tuple[np.ndarray, np.ndarray]]:
     """Weak labels from the training split of a real box set at ``work_gsd_m``: ``ships`` boat boxes are
     REAL_WATER, ``cars`` vehicle boxes SET_PAVED, every other pixel IGNORE; ``streets`` is ``cars`` with
@@ -141,9 +148,7 @@ def load_boxes_as_labels(which: str, work_gsd_m: float = WORK_GSD_M) -> list[tup
             continue
         rgb, s = resample_to_gsd(realdata.read_rgb(it.path), gsd, work_gsd_m)
         lab = np.full(rgb.shape[:2], background, np.uint8)
-        for x0, y0, x1, y1 in it.boxes * s:
-            lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = code
-        out.append((rgb, lab))
+        out.append((rgb, _paint_boxes(lab, it.boxes * s, code)))
     if not out:
         raise InputError(f"no {which} training images under {realdata.SHARED}; --real {which} needs ../shared/data")
     return out
@@ -163,7 +168,7 @@ def load_ships_self(teacher: str | Path, work_gsd_m: float = WORK_GSD_M) -> list
 
     teacher = Path(teacher)
     if not teacher.is_file():
-        raise InputError(f"--real shipsself needs a teacher model: {teacher} does not exist (give --init)")
+        raise InputError(f"--real shipsself needs a teacher model: {teacher} does not exist (give --teacher or --init)")
     seg = LearnedSegmenter(weights=teacher)
     t_gsd = float(seg.meta["work_gsd_m"])
     out = []
@@ -177,9 +182,7 @@ def load_ships_self(teacher: str | Path, work_gsd_m: float = WORK_GSD_M) -> list
         lab = np.full(rgb.shape[:2], IGNORE, np.uint8)
         lab[pw >= SELF_SURE] = REAL_WATER
         lab[pw <= 1.0 - SELF_SURE] = SET_LAND
-        for x0, y0, x1, y1 in it.boxes * s:
-            lab[int(round(y0)):int(round(y1)) + 1, int(round(x0)):int(round(x1)) + 1] = REAL_WATER
-        out.append((rgb, lab))
+        out.append((rgb, _paint_boxes(lab, it.boxes * s, REAL_WATER)))
     if not out:
         raise InputError(f"no ships_aerial training images under {realdata.SHARED}; --real shipsself needs ../shared/data")
     return out
@@ -479,10 +482,10 @@ def train(data_dir: str | Path, out_dir: str | Path, *, steps: int = 2400, batch
     centres = class_centres(levels, stage_rng(seed, "train", "seg", "centres"))
     shares = parse_real(tuple(real))
     pools, counts = [], {}
+    teacher = teacher or init
+    if "shipsself" in shares and teacher is None:
+        raise InputError("--real shipsself learns from a teacher model's sure calls: give --teacher or --init")
     for name, share in shares.items():
-        teacher = teacher or init
-        if name == "shipsself" and teacher is None:
-            raise InputError("--real shipsself learns from a teacher model's sure calls: give --teacher or --init")
         lv = (load_dubai(work_gsd_m, hold=hold) if name == "dubai"
               else load_ships_self(str(teacher), work_gsd_m) if name == "shipsself"
               else load_boxes_as_labels(name, work_gsd_m))
