@@ -8,7 +8,7 @@ import pytest
 
 from coastforge import realdata
 from coastforge.bench.real import (coarse_confusion, coarse_scores, default_config, det_munich,
-                                   match_centres_in_boxes, seg_dubai)
+                                   match_centres_in_boxes, match_centres_in_quads, seg_dubai)
 from coastforge.classes import ASPHALT, GRASS, ROCKS, SAND, WATER
 
 BOX = np.array([[100.0, 100.0, 140.0, 120.0]])  # 40 x 20, centre (120, 110); grown: x 95..145, y 97.5..122.5
@@ -24,6 +24,18 @@ def test_centre_just_outside_grown_box_does_not_match():
     assert match_centres_in_boxes(np.array([[120.0, 122.6]]), BOX) == []
     # inside the grown box along x but not along y: both sides must hold
     assert match_centres_in_boxes(np.array([[144.0, 123.0]]), BOX) == []
+
+
+def test_oriented_label_box_is_grown_along_its_own_axes():
+    # a 40 x 20 box turned 45 degrees about (0, 0): along its long axis the grown box reaches 25 px, across 12.5
+    u, v = np.array([1.0, 1.0]) / np.sqrt(2.0), np.array([-1.0, 1.0]) / np.sqrt(2.0)
+    quad = np.array([-20 * u - 10 * v, 20 * u - 10 * v, 20 * u + 10 * v, -20 * u + 10 * v])[None]
+    assert match_centres_in_quads(24.9 * u[None], quad) == [(0, 0)]
+    assert match_centres_in_quads(25.1 * u[None], quad) == []
+    assert match_centres_in_quads(12.4 * v[None], quad) == [(0, 0)]
+    assert match_centres_in_quads(12.6 * v[None], quad) == []
+    # (20, 0) lies in the axis-aligned hull of the turned box but 14.1 px across its axis: no match
+    assert match_centres_in_quads(np.array([[20.0, 0.0]]), quad) == []
 
 
 def test_one_to_one_when_two_predictions_share_a_label():
