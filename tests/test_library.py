@@ -776,3 +776,38 @@ def test_library_bench_real_crops_carry_their_category(shared_data):
     for img, gsd, aid, _c in crops:
         h, w = img.shape[:2]
         assert aid is None and gsd in (0.2, 0.125) and h == w and h >= 12 and img.dtype == np.uint8
+
+
+def test_cover_recolours_the_deck_and_keeps_the_rim():
+    from coastforge.assets.library import cover
+
+    # an 8 x 3 x 1 m "hull" (long axis x, z up), subdivided so its top has faces in the middle and at the rim
+    boat = trimesh.creation.box((8.0, 3.0, 1.0)).subdivide().subdivide().subdivide()
+    boat.visual.face_colors = np.array([250, 250, 250, 255], np.uint8)
+    covered = cover(boat, (30, 40, 80))
+    fc = np.asarray(covered.visual.face_colors)[:, :3]
+    n, ctr = np.asarray(covered.face_normals), np.asarray(covered.triangles_center)
+    middle = (n[:, 2] > 0.3) & (np.abs(ctr[:, 0]) < 2.0) & (np.abs(ctr[:, 1]) < 0.5)
+    rim = (n[:, 2] > 0.3) & (np.abs(ctr[:, 0]) > 3.4)  # beyond 0.8 of the half-length
+    sides = n[:, 2] <= 0.3
+    assert middle.any() and rim.any() and sides.any()
+    assert (fc[middle] == (30, 40, 80)).all()
+    assert (fc[rim] == 250).all() and (fc[sides] == 250).all()
+    assert (np.asarray(boat.visual.face_colors)[:, :3] == 250).all()  # the source mesh is left as it was
+
+
+@pytest.mark.shared_data
+def test_quaternius_split_manifests_are_disjoint_and_parse(shared_data, tmp_path):
+    from coastforge.train.qlib import HELD, TRAIN, write_sources
+
+    if not (shared_data / "models" / "quaternius").is_dir():
+        pytest.skip(f"{shared_data / 'models' / 'quaternius'} not found")
+    train, held = write_sources(tmp_path / "qlib")
+    ids = {}
+    for p in (train, held):
+        specs, skipped = read_manifest(p)
+        assert not skipped
+        ids[p.stem] = {s.id for s in specs}
+        assert {"pier_walkway", "pier_finger", "buoy"} <= ids[p.stem]  # a level needs piers and buoys
+    q_train, q_held = ids["train"] - ids["held"], ids["held"] - ids["train"]
+    assert q_train == {v[0] for v in TRAIN.values()} and q_held == {v[0] for v in HELD.values()}

@@ -66,3 +66,27 @@ def test_data_commands_parse_the_shared_options(capsys):
         assert "--seeds" in out and "--minutes" in out and "--out" in out
         with pytest.raises(InputError, match="reserved"):
             mod.main(["--out", "unused", "--seeds", "5:7"])
+
+
+def test_covers_go_on_boats_only_and_are_drawn_from_the_seed():
+    from coastforge.synth import synthesize_level
+    from coastforge.train.detector_data import COVER_COLOURS, vary_covers
+
+    level = synthesize_level("marina", 3406, size_m=80)
+    n_boats = sum(o.category == "boat" for o in level.scene.objects)
+    all_covered = vary_covers(level, common_rng(1), p_boat=1.0)
+    for o in all_covered.scene.objects:
+        assert ("cover" in o.attrs) == (o.category == "boat")
+        if o.category == "boat":
+            assert tuple(o.attrs["cover"]) in COVER_COLOURS
+    half = [vary_covers(level, common_rng(s)) for s in (2, 2, 3)]
+    covered = [[o.attrs.get("cover") for o in h.scene.objects] for h in half]
+    assert covered[0] == covered[1]  # same seed, same covers
+    k = sum(c is not None for c in covered[0]) + sum(c is not None for c in covered[2])
+    assert n_boats >= 4 and 0 < k < 2 * n_boats
+
+
+def common_rng(seed: int):
+    from coastforge.rng import stage_rng
+
+    return stage_rng(seed, "test", "covers")

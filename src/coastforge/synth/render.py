@@ -39,22 +39,26 @@ def mesh_source(library: str | Path | None = None) -> Callable[[str], object]:
 
 
 def _instances(level, meshes) -> list:
-    from ..assets.library import repaint  # one repaint for the renders and the library's painted views
+    from ..assets.library import cover, repaint  # one repaint for the renders and the library's painted views
     from ..render import MeshInstance
 
     scene = level.scene
     cache: dict = {}
 
-    def get(a: str, paint=None):
-        key = (a, tuple(paint) if paint else None)
+    def get(a: str, paint=None, canvas=None):
+        key = (a, tuple(paint) if paint else None, tuple(canvas) if canvas else None)
         if key not in cache:
-            cache[key] = meshes(a) if paint is None else repaint(get(a), paint)
+            if canvas:
+                cache[key] = cover(get(a, paint), canvas)
+            else:
+                cache[key] = meshes(a) if paint is None else repaint(get(a), paint)
         return cache[key]
 
     out = []
     for o in scene.objects:
         tint = o.attrs.get("tint")
-        out.append(MeshInstance(get(o.asset_id, o.attrs.get("paint")), o.x_m, o.y_m, o.z_m, o.yaw_deg,
+        mesh = get(o.asset_id, o.attrs.get("paint"), o.attrs.get("cover"))
+        out.append(MeshInstance(mesh, o.x_m, o.y_m, o.z_m, o.yaw_deg,
                                 tuple(o.scale), tuple(tint) if tint else None))
     veg = scene.vegetation
     if veg is not None and len(veg):

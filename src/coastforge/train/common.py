@@ -96,8 +96,9 @@ def data_main(argv: list[str] | None, description: str, default_seeds: str,
                         help="asset types as in the benchmark's levels, or with rare ones shown more often")
     if looks_option:
         ap.add_argument("--library", default=None, help="render with this asset library's assets (default: the kit)")
-        ap.add_argument("--looks", choices=("kit", "varied"), default="kit",
-                        help="'varied' repaints about half the boats (dark hulls among them)")
+        ap.add_argument("--looks", choices=("kit", "varied", "covers"), default="kit",
+                        help="'varied' repaints about half the boats (dark hulls among them), 'covers' puts "
+                             "about half under canvas covers")
     a = ap.parse_args(argv)
     kw = {"mix": a.mix} if mix_option else {}
     if looks_option:

@@ -10,7 +10,7 @@ draws the rare asset types more often (``synth.layout.TRAINING_MIX``: buses and 
 dinghies, kayaks, rowboats, centre consoles); the default draws them as the benchmark's levels do.
 ``--library LIB`` renders the levels with another asset library's boats and cars (e.g. a training split of
 the CC0 models in ../shared/data/models), ``--looks varied`` repaints about half the boats (dark hulls
-among them): looks the kit does not have.
+among them), ``--looks covers`` puts about half of them under canvas covers: looks the kit does not have.
 """
 
 from __future__ import annotations
@@ -56,6 +56,28 @@ def vary_looks(level, rng: np.random.Generator, p_boat: float = 0.5):
     return dataclasses.replace(level, scene=dataclasses.replace(level.scene, objects=tuple(objs)))
 
 
+# canvas covers of laid-up boats (sRGB): navy, royal blue, tan, grey, forest green, burgundy, teal, off-white
+COVER_COLOURS = ((30, 40, 80), (40, 75, 140), (170, 150, 115), (110, 112, 115), (40, 70, 50), (100, 30, 40),
+                 (30, 100, 110), (205, 200, 185))
+
+
+def vary_covers(level, rng: np.random.Generator, p_boat: float = 0.5):
+    """The level with about ``p_boat`` of its boats under a canvas cover (``assets.library.cover``: deck and
+    cabin one colour from ``COVER_COLOURS``), a third of those also with a repainted hull; for training
+    only."""
+    import dataclasses
+
+    objs = []
+    for o in level.scene.objects:
+        if o.category == "boat" and "cover" not in o.attrs and rng.random() < p_boat:
+            attrs = {**o.attrs, "cover": list(COVER_COLOURS[int(rng.integers(len(COVER_COLOURS)))])}
+            if "paint" not in attrs and rng.random() < 1 / 3:
+                attrs["paint"] = list(HULL_PAINTS[int(rng.integers(len(HULL_PAINTS)))])
+            o = dataclasses.replace(o, attrs=attrs)
+        objs.append(o)
+    return dataclasses.replace(level, scene=dataclasses.replace(level.scene, objects=tuple(objs)))
+
+
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
                  work_gsd_m: float = WORK_GSD_M, mix: str = "benchmark", library: str | Path | None = None,
                  looks: str = "kit") -> tuple[np.ndarray, list[list[float]]]:
@@ -63,7 +85,7 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
 
     ``mix="training"`` draws the rare asset types more often (``synth.layout.TRAINING_MIX``); ``library``
     fills the layout's roles with that library's assets (other looks than the kit's); ``looks="varied"``
-    repaints about half the boats (``vary_looks``)."""
+    repaints about half the boats (``vary_looks``), ``looks="covers"`` covers about half (``vary_covers``)."""
     from .. import frames
     from ..rng import stage_rng
     from ..synth import synthesize_level
@@ -74,6 +96,8 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
                              mix=TRAINING_MIX if mix == "training" else BENCHMARK_MIX)
     if looks == "varied":
         level = vary_looks(level, stage_rng(seed, "train", "detector_data", "looks"))
+    elif looks == "covers":
+        level = vary_covers(level, stage_rng(seed, "train", "detector_data", "covers"))
     rgb = render_level(level, mesh_source(library), gsd_m, seed)
     sx, _sy = level.scene.extent_m
     work, _ = resample_to_gsd(rgb, sx / rgb.shape[1], work_gsd_m)

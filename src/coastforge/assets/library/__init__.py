@@ -29,7 +29,7 @@ from .cache import cache_root, default_library, open_library
 from .ingest import FLOATING, estimate_draft
 from .manifest import (CATEGORY_WORDS, AssetSpec, SkippedAsset, guess_category, parse_asset_entry,
                        read_manifest, scan_folder)
-from .paints import PAINTS, is_paintable, repaint
+from .paints import PAINTS, cover, is_paintable, repaint
 from .queries import library_info, query_image
 from .store import FORMAT, INDEX_FILE, LIBRARY_JSON, Z_UP_TO_GLTF, AssetRecord, Library
 from .thumbnails import THUMBNAILS_FORMAT, read_thumbnails
@@ -58,6 +58,7 @@ __all__ = [
                        "build_library",
                        "cache_root",
                        "choose_view_gsd",
+                       "cover",
                        "crowd_mesh",
                        "crowded_view",
                        "default_library",

@@ -30,3 +30,24 @@ def repaint(mesh, rgb):
     fc[body, :3] = np.asarray(rgb, np.uint8)
     m.visual.face_colors = fc
     return m
+
+
+def cover(mesh, rgb, along: float = 0.8, across: float = 0.8):
+    """A copy of boat ``mesh`` under a canvas cover of colour ``rgb``: every top-facing face whose centre lies
+    inside an ellipse of ``along`` x ``across`` of the footprint (the long axis along the longer side) takes
+    the cover's colour, deck, cabin and windows alike; the hull's rim and sides keep theirs. Covered and
+    laid-up boats are common in real marinas and look nothing like a white deck with a cabin."""
+    m = mesh.copy()
+    fc = np.asarray(m.visual.face_colors).copy()
+    if not len(fc):
+        return m
+    lo, hi = np.asarray(m.bounds, np.float64)
+    c, half = (lo + hi) / 2.0, np.maximum((hi - lo) / 2.0, 1e-9)
+    ax = (0, 1) if half[0] >= half[1] else (1, 0)
+    ctr = np.asarray(m.triangles_center, np.float64)
+    r2 = ((ctr[:, ax[0]] - c[ax[0]]) / (along * half[ax[0]])) ** 2 \
+        + ((ctr[:, ax[1]] - c[ax[1]]) / (across * half[ax[1]])) ** 2
+    sel = (np.asarray(m.face_normals)[:, 2] > 0.3) & (r2 <= 1.0)
+    fc[sel, :3] = np.asarray(rgb, np.uint8)
+    m.visual.face_colors = fc
+    return m
