@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from coastforge.evaluate import evaluate_scenes, object_metrics, pier_connectivity
+from coastforge.evaluate import evaluate_scenes, object_metrics, pier_connectivity, pier_deck
 from coastforge.scene import Scene, SceneObject
 
 
@@ -146,3 +146,36 @@ def test_pier_connectivity():
     orphan = obj(2, 20, 20, 0, cat="pier", asset="pier_finger", length=8, width=1.2)
     r = pier_connectivity(scene([walk, finger, orphan], classes))
     assert r["all_connected"] is False and r["disconnected_ids"] == ["o2"]
+
+
+def test_pier_deck_counts_the_truth_deck_found_and_the_deck_built_over_open_water():
+    walk = obj(0, 0, 0, 0, cat="pier", asset="pier_walkway", length=20, width=2.0)  # 40 m² of truth deck
+    half = obj(1, -5, 0, 0, cat="pier", asset="pier_walkway", length=10, width=2.0)  # its western half
+    stray = obj(2, 30, 30, 0, cat="pier", asset="pier_finger", length=10, width=2.0)  # 20 m² over open water
+    boat = obj(3, 0, 10, 0)
+    r = pier_deck(scene([walk, boat]), scene([half, stray, boat]))
+    assert r["truth_m2"] == pytest.approx(40.0) and r["pred_m2"] == pytest.approx(40.0)
+    # the half found, plus the 0.5 m tolerance beyond its east end (2 m wide): (10 + 0.5) x 2 of 40 m²
+    assert r["recall"] == pytest.approx(21.0 / 40.0, abs=1e-6)
+    assert r["precision"] == pytest.approx(0.5)  # the stray piece is no truth pier
+    # offsets within the tolerance are forgiven; connectivity alone would call any connected deck fine
+    shifted = obj(4, 0, 0.3, 0, cat="pier", asset="pier_walkway", length=20, width=2.0)
+    assert pier_deck(scene([walk]), scene([shifted]))["recall"] == pytest.approx(1.0)
+    none = pier_deck(scene([walk]), scene([boat]))
+    assert none["recall"] == 0.0 and none["precision"] is None
+    assert pier_deck(scene([boat]), scene([boat])) == {"truth_m2": 0.0, "pred_m2": 0.0, "recall": None,
+                                                     "precision": None}
+    assert "pier_deck" in evaluate_scenes(scene([walk]), scene([half]))
+
+
+def test_benchmark_table_has_the_pier_deck_columns_on_every_line():
+    from coastforge.bench.paper import PAPER, to_markdown
+
+    row = {"level": "marina", "resolution": "high", "n_truth": 10, "gsd_m": 0.1, "xy_rmse_m": 0.1,
+           "rotation_rmse_deg": 1.0, "orientation_rmse_deg": 0.5, "match_precision": 1.0,
+           "match_precision_category": 1.0, "recall": 1.0, "detection_precision": 1.0, "miou": 0.9,
+           "piers_connected": True, "pier_deck_recall": 0.812, "pier_deck_precision": 0.934, "generate_s": 3.0}
+    avg = {k: v for k, v in row.items() if k not in ("level", "resolution", "gsd_m")}
+    md = to_markdown({"rows": [row], "averages": {"high": avg}, "paper": PAPER}).splitlines()
+    assert "pier deck recall" in md[0] and "0.812" in md[2] and "0.934" in md[3]
+    assert len({line.count("|") for line in md}) == 1  # header, rule, rows, averages and paper rows line up

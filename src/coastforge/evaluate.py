@@ -2,7 +2,7 @@
 
 Objects: truth and predictions are matched one-to-one by the Hungarian assignment on centre distance,
 with a gate of max(2 m, half the truth object's length). Only boats, vehicles and buoys count; pier
-segments are checked for connectivity instead. Undefined figures (no matched pairs) are ``None``.
+segments are checked for connectivity and for the deck area they share with the truth's piers instead. Undefined figures (no matched pairs) are ``None``.
 
 A truth object marked ``attrs["symmetry"] == "rotational"`` (a round buoy) looks the same at every yaw, so
 its yaw error is undefined: it counts for XY, recall and precision but not for the rotation and orientation
@@ -181,6 +181,28 @@ def pier_connectivity(scene: Scene, tol_m: float = 0.75) -> dict:
     }
 
 
+def pier_deck(truth: Scene, pred: Scene, tol_m: float = 0.5) -> dict:
+    """How much of the truth's pier deck the prediction built, and how much of its deck is real: recall = the
+    truth piers' area (union) within ``tol_m`` of a predicted pier, precision = the predicted piers' area within
+    ``tol_m`` of a truth pier. Connectivity alone cannot see a pier that was never found, or deck built over
+    open water; this can. ``None`` where a side has no pier."""
+    from shapely import unary_union
+    from shapely.geometry import Polygon
+
+    def deck(scene: Scene):
+        polys = [Polygon(o.footprint_m()) for o in scene.objects if o.category == "pier"]
+        return unary_union(polys) if polys else None
+
+    t, p = deck(truth), deck(pred)
+    out: dict = {"truth_m2": float(t.area) if t is not None else 0.0,
+                 "pred_m2": float(p.area) if p is not None else 0.0, "recall": None, "precision": None}
+    if t is not None and t.area > 0:
+        out["recall"] = float(t.intersection(p.buffer(tol_m)).area / t.area) if p is not None else 0.0
+    if p is not None and p.area > 0:
+        out["precision"] = float(p.intersection(t.buffer(tol_m)).area / p.area) if t is not None else 0.0
+    return out
+
+
 def touches_land(scene: Scene, poly) -> bool:
     grid = scene.grid
     minx, miny, maxx, maxy = poly.bounds
@@ -250,4 +272,5 @@ def evaluate_scenes(truth: Scene, pred: Scene) -> dict:
     out["per_category"] = per
     out["terrain"] = terrain_metrics(truth, pred)
     out["piers"] = pier_connectivity(pred)
+    out["pier_deck"] = pier_deck(truth, pred)
     return out

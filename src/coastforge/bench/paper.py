@@ -21,7 +21,8 @@ PAPER = {
             "recall": 0.965},
 }
 COLUMNS = ("n_truth", "gsd_m", "xy_rmse_m", "rotation_rmse_deg", "orientation_rmse_deg", "match_precision",
-           "match_precision_category", "recall", "detection_precision", "miou", "piers_connected", "generate_s")
+           "match_precision_category", "recall", "detection_precision", "miou", "piers_connected", "pier_deck_recall",
+           "pier_deck_precision", "generate_s")
 
 
 def check_benchmark(presets=None, gsds=(0.1, 0.2), library: str | None = None) -> tuple[list[str], tuple]:
@@ -73,7 +74,9 @@ def run_benchmark(out: str | Path, presets=None, seed: int = 0, gsds=(0.1, 0.2),
                                         "recall", "detection_precision")},
                    "miou": m["terrain"].get("miou"), "height_rmse_land_m": m["terrain"].get("height_rmse_land_m"),
                    "height_rmse_water_m": m["terrain"].get("height_rmse_water_m"),
-                   "piers_connected": m["piers"].get("all_connected"), "generate_s": round(gen_s, 2),
+                   "piers_connected": m["piers"].get("all_connected"),
+                   "pier_deck_recall": m["pier_deck"]["recall"], "pier_deck_precision": m["pier_deck"]["precision"],
+                   "generate_s": round(gen_s, 2),
                    "synth_s": round(synth_s, 2), "timings_s": r.timings_s, "per_category": m["per_category"]}
             rows.append(row)
             log(f"{p:14s} {img['gsd_m']:.2f} m/px  recall {_f(row['recall'])}  xy {_f(row['xy_rmse_m'])} m  "
@@ -86,7 +89,8 @@ def run_benchmark(out: str | Path, presets=None, seed: int = 0, gsds=(0.1, 0.2),
             continue
         avg = {}
         for k in ("xy_rmse_m", "rotation_rmse_deg", "orientation_rmse_deg", "match_precision",
-                  "match_precision_category", "recall", "detection_precision", "miou", "generate_s"):
+                  "match_precision_category", "recall", "detection_precision", "miou", "pier_deck_recall",
+                  "pier_deck_precision", "generate_s"):
             vals = [r[k] for r in sel if r[k] is not None]
             avg[k] = float(np.mean(vals)) if vals else None
         avg["piers_connected"] = all(r["piers_connected"] in (True, None) for r in sel)
@@ -110,20 +114,23 @@ def _f(v, nd=3):
 
 def to_markdown(result: dict) -> str:
     head = ("| level | res | objects | m/px | XY RMSE (m) | rotation RMSE (°) | orientation RMSE (°) | match precision "
-            "| category precision | recall | detection precision | mIoU | piers connected | generate (s) |")
-    lines = [head, "|" + "---|" * 14]
+            "| category precision | recall | detection precision | mIoU | piers connected | pier deck recall "
+            "| pier deck precision | generate (s) |")
+    lines = [head, "|" + "---|" * 16]
     for r in result["rows"]:
         lines.append(f"| {r['level']} | {r['resolution']} | {r['n_truth']} | {r['gsd_m']:.2f} | {_f(r['xy_rmse_m'])} | "
                      f"{_f(r['rotation_rmse_deg'], 1)} | {_f(r['orientation_rmse_deg'], 2)} | "
                      f"{_f(r['match_precision'])} | {_f(r['match_precision_category'])} | {_f(r['recall'])} | "
                      f"{_f(r['detection_precision'])} | {_f(r['miou'])} | {_f(r['piers_connected'])} | "
+                     f"{_f(r.get('pier_deck_recall'))} | {_f(r.get('pier_deck_precision'))} | "
                      f"{_f(r['generate_s'], 1)} |")
     for name, a in result["averages"].items():
         lines.append(f"| **average** | {name} | {a['n_truth']} | | {_f(a['xy_rmse_m'])} | {_f(a['rotation_rmse_deg'], 1)} | "
                      f"{_f(a['orientation_rmse_deg'], 2)} | {_f(a['match_precision'])} | "
                      f"{_f(a['match_precision_category'])} | {_f(a['recall'])} | {_f(a['detection_precision'])} | "
-                     f"{_f(a['miou'])} | {_f(a['piers_connected'])} | {_f(a['generate_s'], 1)} |")
+                     f"{_f(a['miou'])} | {_f(a['piers_connected'])} | {_f(a.get('pier_deck_recall'))} | "
+                     f"{_f(a.get('pier_deck_precision'))} | {_f(a['generate_s'], 1)} |")
     for name, p in result["paper"].items():
         lines.append(f"| *paper* | {name} | | | {p['xy_rmse_m']:.3f} | {p['rotation_rmse_deg']:.1f} | "
-                     f"{p['orientation_rmse_deg']:.2f} | {p['match_precision']:.3f} | | {p['recall']:.3f} | | | | |")
+                     f"{p['orientation_rmse_deg']:.2f} | {p['match_precision']:.3f} | | {p['recall']:.3f} | | | | | | |")
     return "\n".join(lines) + "\n"

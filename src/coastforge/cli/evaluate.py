@@ -45,3 +45,7 @@ def evaluate(truth_path: str, pred_path: str, as_json: bool) -> None:
     if p["n_segments"]:
         con.print(f"piers: {p['n_segments']} segments in {p['n_structures']} structures, all connected: "
                   f"{p['all_connected']}")
+    d = result["pier_deck"]
+    if d["truth_m2"] or d["pred_m2"]:
+        con.print(f"pier deck: {d['truth_m2']:.0f} m² in the truth, {d['pred_m2']:.0f} m² built; recall "
+                  f"{fmt(d['recall'])}, precision {fmt(d['precision'])}")
