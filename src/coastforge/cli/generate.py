@@ -17,7 +17,8 @@ from .options import overwrite_option, pass_config, size_options
               help="Asset library folder (coastforge library build); default: the bundled starter kit.")
 @click.option("--out", required=True, type=click.Path(), help="Output folder for scene.json and everything else.")
 @click.option("--export", "exports", default="", metavar="LIST",
-              help="Comma-separated export formats: ue5,holoocean,gltf,usd,sdf,ue5_tiles.")
+              help="Comma-separated export formats: ue5,holoocean,gltf,usd,sdf,ue5_tiles (none by default; "
+                   "'coastforge export OUT' writes the config's export.formats later).")
 @click.option("--dem", "dems", multiple=True, type=click.Path(), help="A DEM/bathymetry GeoTIFF to fuse (repeatable).")
 @click.option("--no-report", is_flag=True, help="Do not build report.html.")
 @overwrite_option
