@@ -2,7 +2,8 @@
 
 Objects: truth and predictions are matched one-to-one by the Hungarian assignment on centre distance,
 with a gate of max(2 m, half the truth object's length). Only boats, vehicles and buoys count; pier
-segments are checked for connectivity and for the deck area they share with the truth's piers instead. Undefined figures (no matched pairs) are ``None``.
+segments are checked for connectivity and for the deck area they share with the truth's piers instead.
+Undefined figures (no matched pairs) are ``None``.
 
 A truth object marked ``attrs["symmetry"] == "rotational"`` (a round buoy) looks the same at every yaw, so
 its yaw error is undefined: it counts for XY, recall and precision but not for the rotation and orientation

@@ -289,8 +289,8 @@ def det_marina(config=None, with_classmap: bool = False) -> dict:
     half the labelled length) beside it for comparison with the synthetic figures; harbor structures hit."""
     from shapely.geometry import Polygon
 
-    from ..io import read_image
     from ..frames import wrap_half_deg
+    from ..io import read_image
     from .detection import Score, match, piers_found, read_dota_yolo
 
     folder = rd.SHARED / "aerial" / "marina_p0861"
@@ -306,7 +306,8 @@ def det_marina(config=None, with_classmap: bool = False) -> dict:
     boats = [d for d in dets if d.category == "boat"]
     pairs = match_centres_in_quads(np.array([[d.cx_px, d.cy_px] for d in boats]).reshape(-1, 2),
                                    np.array([t.corners for t in ships]).reshape(-1, 4, 2))
-    err = [float(wrap_half_deg(boats[i].yaw_deg - ships[j].yaw)) for i, j in pairs]
+    s = Score("marina_p0861 boats", n_truth=len(ships), n_pred=len(boats), matched=len(pairs), gsd_m=MARINA_GSD_M,
+              orient_err=[float(wrap_half_deg(boats[i].yaw_deg - ships[j].yaw)) for i, j in pairs])
     gate = Score("marina_p0861 boats", gsd_m=MARINA_GSD_M)
     match(ships, boats, gate)
     # detections name pier boxes pier_walkway / pier_finger (coastforge.classes.DETECTION_CATEGORIES)
@@ -317,9 +318,8 @@ def det_marina(config=None, with_classmap: bool = False) -> dict:
         poly = Polygon(h.corners)
         hit += any(poly.intersects(pp) for pp in pier_polys)
     return {"set": "marina_p0861", "backend": cfg.detect.backend, "with_classmap": with_classmap,
-            "gsd_m": MARINA_GSD_M, "objects": len(ships), "preds": len(boats), "matched": len(pairs),
-            "recall": _ratio(len(pairs), len(ships)), "precision": _ratio(len(pairs), len(boats)),
-            "orient_rmse_deg": float(np.sqrt(np.mean(np.square(err)))) if err else float("nan"),
+            "gsd_m": MARINA_GSD_M, "objects": s.n_truth, "preds": s.n_pred, "matched": s.matched,
+            "recall": s.recall, "precision": s.precision, "orient_rmse_deg": s.orient_rmse,
             "half_length_gate": {"matched": gate.matched, "recall": gate.recall, "precision": gate.precision,
                                  "orient_rmse_deg": gate.orient_rmse},
             "harbors": len(harbors), "harbors_hit": int(hit), "pier_boxes": len(piers),

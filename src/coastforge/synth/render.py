@@ -39,7 +39,7 @@ def mesh_source(library: str | Path | None = None) -> Callable[[str], object]:
 
 
 def _instances(level, meshes) -> list:
-    from ..assets.library import cover, repaint  # one repaint for the renders and the library's painted views
+    from ..assets.library import cover, repaint  # the same repaint as the library's painted views
     from ..render import MeshInstance
 
     scene = level.scene
@@ -50,8 +50,10 @@ def _instances(level, meshes) -> list:
         if key not in cache:
             if canvas:
                 cache[key] = cover(get(a, paint), canvas)
+            elif paint:
+                cache[key] = repaint(get(a), paint)
             else:
-                cache[key] = meshes(a) if paint is None else repaint(get(a), paint)
+                cache[key] = meshes(a)
         return cache[key]
 
     out = []

@@ -43,17 +43,26 @@ HULL_PAINTS = ((24, 34, 70), (20, 20, 24), (28, 58, 40), (110, 70, 38), (90, 92,
                (40, 70, 150), (220, 210, 180))
 
 
-def vary_looks(level, rng: np.random.Generator, p_boat: float = 0.5):
-    """The level with the body colour of about ``p_boat`` of its boats drawn from ``HULL_PAINTS`` (half of
-    those dark), for training only: the benchmark's levels keep the kit's looks."""
+def _pick(rng: np.random.Generator, colours) -> list[int]:
+    return list(colours[int(rng.integers(len(colours)))])
+
+
+def _restyle_boats(level, rng: np.random.Generator, p_boat: float, key: str, attrs_of):
+    """The level with about ``p_boat`` of its boats not yet holding ``key`` given ``attrs_of(rng, attrs)``."""
     import dataclasses
 
     objs = []
     for o in level.scene.objects:
-        if o.category == "boat" and "paint" not in o.attrs and rng.random() < p_boat:
-            o = dataclasses.replace(o, attrs={**o.attrs, "paint": list(HULL_PAINTS[int(rng.integers(len(HULL_PAINTS)))])})
+        if o.category == "boat" and key not in o.attrs and rng.random() < p_boat:
+            o = dataclasses.replace(o, attrs={**o.attrs, **attrs_of(rng, o.attrs)})
         objs.append(o)
     return dataclasses.replace(level, scene=dataclasses.replace(level.scene, objects=tuple(objs)))
+
+
+def vary_looks(level, rng: np.random.Generator, p_boat: float = 0.5):
+    """The level with the body colour of about ``p_boat`` of its boats drawn from ``HULL_PAINTS`` (half of
+    those dark), for training only: the benchmark's levels keep the kit's looks."""
+    return _restyle_boats(level, rng, p_boat, "paint", lambda r, _a: {"paint": _pick(r, HULL_PAINTS)})
 
 
 # canvas covers of laid-up boats (sRGB): navy, royal blue, tan, grey, forest green, burgundy, teal, off-white
@@ -65,17 +74,13 @@ def vary_covers(level, rng: np.random.Generator, p_boat: float = 0.5):
     """The level with about ``p_boat`` of its boats under a canvas cover (``assets.library.cover``: deck and
     cabin one colour from ``COVER_COLOURS``), a third of those also with a repainted hull; for training
     only."""
-    import dataclasses
+    def attrs_of(r: np.random.Generator, attrs: dict) -> dict:
+        new = {"cover": _pick(r, COVER_COLOURS)}
+        if "paint" not in attrs and r.random() < 1 / 3:
+            new["paint"] = _pick(r, HULL_PAINTS)
+        return new
 
-    objs = []
-    for o in level.scene.objects:
-        if o.category == "boat" and "cover" not in o.attrs and rng.random() < p_boat:
-            attrs = {**o.attrs, "cover": list(COVER_COLOURS[int(rng.integers(len(COVER_COLOURS)))])}
-            if "paint" not in attrs and rng.random() < 1 / 3:
-                attrs["paint"] = list(HULL_PAINTS[int(rng.integers(len(HULL_PAINTS)))])
-            o = dataclasses.replace(o, attrs=attrs)
-        objs.append(o)
-    return dataclasses.replace(level, scene=dataclasses.replace(level.scene, objects=tuple(objs)))
+    return _restyle_boats(level, rng, p_boat, "cover", attrs_of)
 
 
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,

@@ -20,6 +20,7 @@ import shutil
 from pathlib import Path
 
 from .. import realdata
+from ..assets.kit.manifest import MANIFEST_NAME, kit_dir
 from ..errors import InputError
 
 # file stem -> (asset id, category, length in metres)
@@ -40,13 +41,14 @@ def write_sources(out: str | Path) -> tuple[Path, Path]:
     qdir = realdata.SHARED / "models" / "quaternius"
     if not qdir.is_dir():
         raise InputError(f"{qdir} not found: the Quaternius models come from ../shared/data beside the project")
-    kit_dir = Path(__file__).resolve().parents[1] / "data" / "kit"
-    kit = {a["id"]: a for a in json.loads((kit_dir / "kit.json").read_text())["assets"]}
+    kit_root = kit_dir()
+    # the raw entries, not assets.kit.read_manifest's: a library manifest takes their axes and sizes as they are
+    kit = {a["id"]: a for a in json.loads((kit_root / MANIFEST_NAME).read_text())["assets"]}
     out.mkdir(parents=True, exist_ok=True)
     kit_entries = []
     for aid in KIT_KEEP:
         e = dict(kit[aid])
-        shutil.copyfile(kit_dir / e["mesh"], out / e["mesh"])
+        shutil.copyfile(kit_root / e["mesh"], out / e["mesh"])
         e.pop("dims_m", None)  # measured again from the mesh by the build
         kit_entries.append(e)
     paths = []
