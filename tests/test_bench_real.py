@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from coastforge import realdata
-from coastforge.bench.real import (coarse_confusion, coarse_scores, default_config, det_munich,
+from coastforge.bench.real import (coarse_confusion, coarse_scores, cut_by_edge, default_config, det_munich,
                                    match_centres_in_boxes, match_centres_in_quads, seg_dubai)
 from coastforge.classes import ASPHALT, GRASS, ROCKS, SAND, WATER
 
@@ -60,6 +60,15 @@ def test_hungarian_picks_the_globally_best_pairing():
 def test_empty_inputs_match_nothing():
     assert match_centres_in_boxes(np.zeros((0, 2)), BOX) == []
     assert match_centres_in_boxes(np.array([[120.0, 110.0]]), np.zeros((0, 4))) == []
+
+
+def test_a_box_reaching_past_the_image_edge_is_cut_by_it():
+    from coastforge.types import Detection
+
+    assert not cut_by_edge(Detection("boat", 0.5, 100.0, 50.0, 40.0, 10.0, 0.0), 120, 100)  # x 80..120
+    assert cut_by_edge(Detection("boat", 0.5, 101.0, 50.0, 40.0, 10.0, 0.0), 120, 100)
+    assert cut_by_edge(Detection("boat", 0.5, 50.0, 19.0, 40.0, 10.0, 90.0), 120, 100)  # turned: y -1..39
+    assert cut_by_edge(Detection("boat", 0.5, 50.0, 4.0, 40.0, 10.0, 0.0), 120, 100)  # y -1..9
 
 
 def test_coarse_mapping_rocks_wrong_building_ignored():
