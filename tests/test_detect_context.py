@@ -44,6 +44,24 @@ def test_a_class_map_without_water_decides_nothing_and_a_harbour_keeps_its_boats
     assert [d.category for d in boats_off_water([car], _map(370), GSD, DetectConfig())] == ["boat"]
 
 
+def test_an_unsure_boat_with_no_water_under_it_is_no_boat_however_near_the_water():
+    """``DRY_BOAT_MAX_SCORE``: the detector unsure and the class map calling the whole box land; either alone
+    is not enough (a sure boat on the slip stays, so does an unsure one touching the water)."""
+    from dataclasses import replace
+
+    from coastforge.detection import DRY_BOAT_MAX_SCORE
+
+    unsure = DRY_BOAT_MAX_SCORE - 0.05
+    car = replace(_boat(150, 4.6, 1.9), score=unsure)  # on the quay road, 6 m from the water
+    log = replace(_boat(680, 4.6, 1.9), score=unsure)  # on the grass beyond
+    sure = _boat(150, 4.6, 1.9)  # score 0.8: a boat on its trailer
+    moored = replace(_boat(105, 4.6, 1.9), score=unsure)  # its box (x 97-113) reaches into the water (x < 100)
+    out = boats_off_water([car, log, sure, moored], _map(100), GSD, DetectConfig())
+    assert [(d.category, d.cx_px, d.score) for d in out] == [
+        ("vehicle", 150.0, unsure), ("boat", 150.0, 0.8), ("boat", 105.0, unsure)]
+    assert out[0].heading_known is False
+
+
 def _rgb(water_cols: int) -> np.ndarray:
     """Grey asphalt (a little grain); a smooth blue-green sea over the first ``water_cols`` columns."""
     rng = np.random.default_rng(0)

@@ -8,8 +8,8 @@ answer instead of letting one stage silently veto the other.
 - **The water filters the detections** (``recategorise``): a "vehicle" standing in open water is a small
   boat (it keeps its box; its heading is left to the matcher), one in a patch of "water" among land keeps
   its category (the class map is what is wrong there), a vehicle on riprap (rocks by the water) is dropped,
-  and a boat far from any water becomes a vehicle when it has a vehicle's size and stands on pavement, or is
-  dropped (``detection.boats_off_water``).
+  and a boat far from any water, or an unsure one with no water under its box, becomes a vehicle when it has
+  a vehicle's size and stands on pavement, or is dropped (``detection.boats_off_water``).
 
 Every change is counted in the returned notes (shown in the report).
 """
