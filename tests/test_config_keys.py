@@ -593,6 +593,7 @@ PROBES: dict[str, Probe] = {
     "detect.snap_deg": _p(detect_classical, 45.0),
     "detect.snap_radius_m": _p(detect_classical, 0.0),
     "detect.pier_gsd_m": _p(detect_classical, 1.0),
+    "detect.pier_net": _p(detect_classical, False),
     "detect.walkway_min_m": _p(detect_classical, 40.0),
     "detect.walkway_max_width_m": _p(detect_classical, 1.0),
     "detect.finger_min_m": _p(detect_classical, 15.0),

@@ -149,6 +149,8 @@ class DetectConfig:
     snap_deg: float = 10.0  # snap boat axes to their pier's direction (or perpendicular) within this
     snap_radius_m: float = 15.0  # ... when the pier is this close (or one boat length)
     pier_gsd_m: float = 0.3  # piers are searched on a grid this coarse (speed)
+    # classical (and hybrid) piers: the pier-deck network's decks join the structure mask (``detection.pier_net``)
+    pier_net: bool = True
     walkway_min_m: float = 18.0
     walkway_max_width_m: float = 3.0
     finger_min_m: float = 5.0

@@ -20,6 +20,7 @@ Work is done at ``work_gsd_m`` (finer images are downsampled), so time grows wit
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from ..config import DetectConfig
 from ..frames import wrap_half_deg, yaw_from_direction_px
 from ..types import ClassMap, Detection, GeoImage
 from . import heading as hd
-from .piers import detect_piers, dominant_angles, labels_in
+from .piers import component_axes, detect_piers, dominant_angles, labels_in
 
 
 def _resize(a: np.ndarray, shape: tuple[int, int], nearest: bool = False) -> np.ndarray:
@@ -205,6 +206,14 @@ def _local_std(x: np.ndarray, k: int) -> np.ndarray:
     return np.sqrt(np.maximum(m2 - m * m, 0.0))
 
 
+PIER_NET_P = 0.5  # a pixel the pier-deck network gives at least this probability is a deck
+# ... run on images no coarser than this (it learned from renders of 0.08-0.35 m/px; coarser ones would be
+# upsampled several times for it, and their decks are a few pixels wide)
+PIER_NET_MAX_GSD_M = 0.4
+PIER_NET_CLOSE_M = 1.0  # gaps in the network's decks up to twice this are closed
+PIER_NET_NOT_DECK_P = 0.1  # structure the network gives less than this is no deck
+
+
 class ClassicalDetector:
     """Water model → piers (line openings) → boats (marker watershed) → vehicles (local contrast)."""
 
@@ -214,6 +223,15 @@ class ClassicalDetector:
         self.work_gsd_m = float(work_gsd_m if work_gsd_m is not None else self.config.work_gsd_m)
         self.debug = debug
         self.layers: dict[str, np.ndarray] = {}
+        self._pier_net: Any = None
+
+    def pier_net(self):
+        """The pier-deck network (loaded once per detector)."""
+        if self._pier_net is None:
+            from .pier_net import PierNet
+
+            self._pier_net = PierNet()
+        return self._pier_net
 
     # ------------------------------------------------------------------------------------ water
     def water_mask(self, lab: np.ndarray, gsd: float, class_map: ClassMap | None) -> np.ndarray:
@@ -311,10 +329,27 @@ class ClassicalDetector:
         struct = cv2.morphologyEx(struct.astype(np.uint8), cv2.MORPH_OPEN, np.ones((2, 2), np.uint8)).astype(bool)
         # land: big structure blobs far from water are not piers or boats
         land = ~water0 & (dist_w > 0) & ~near
-        angles = dominant_angles(struct & ~cv2.dilate(land.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool))
+        # the pier-deck network's decks (a deck coloured like the water, dark timber) join the structure the piers
+        # are searched in, and the structure it is sure is no deck (the boats moored alongside: merged with the
+        # deck they make a blob too wide for one) leaves it (``detect.pier_net``)
+        pier_struct = struct
+        deck = None
+        if cfg.pier_net and gsd <= PIER_NET_MAX_GSD_M:
+            prob = self.pier_net().probability(rgb, gsd, struct.shape)
+            deck = (prob >= PIER_NET_P) & near
+            # a boat moored over a deck's edge breaks it for a metre or two: closed (fingers lie further apart)
+            r = max(1, int(round(PIER_NET_CLOSE_M / gsd)))
+            deck = cv2.morphologyEx(deck.astype(np.uint8), cv2.MORPH_CLOSE,
+                                    cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))).astype(bool)
+            pier_struct = deck | (struct & (prob >= PIER_NET_NOT_DECK_P))
+        angles = dominant_angles(pier_struct & ~cv2.dilate(land.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool))
+        if deck is not None:  # the network's decks give their own directions
+            for b in component_axes(deck, cfg.finger_min_m / gsd):
+                if all(abs(wrap_half_deg(b - c)) > 3.0 for c in angles):
+                    angles.append(b)
         # walkways on a coarser grid (line openings cost ~area x angles), fingers on the work grid
         pf = max(1, min(int(cfg.pier_gsd_m / gsd), 4))
-        piers, pier_mask = detect_piers(struct & ~land, gsd, scale, angles, water=water0,
+        piers, pier_mask = detect_piers(pier_struct & ~land, gsd, scale, angles, water=water0,
                                         walkway_min_m=cfg.walkway_min_m, walkway_max_width_m=cfg.walkway_max_width_m,
                                         finger_min_m=cfg.finger_min_m, finger_max_width_m=cfg.finger_max_width_m,
                                         walk_factor=pf)

@@ -57,6 +57,43 @@ def dominant_angles(mask: np.ndarray, n_peaks: int = 4, min_share: float = 0.3) 
     return sorted(angles)
 
 
+def component_axes(mask: np.ndarray, min_len_px: float, min_elongation: float = 4.0) -> list[float]:
+    """The long-axis directions (image angle in degrees, [0, 180), as ``dominant_angles``) of the elongated
+    connected parts of ``mask`` at least ``min_len_px`` long, each with its perpendicular. A clean deck mask's
+    parts give their own directions directly, where the edge histogram of a small or ragged mask peaks to
+    either side of them."""
+    import cv2
+
+    n, lbl, st, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    angles: list[float] = []
+    for k in range(1, n):
+        if np.hypot(st[k, 2], st[k, 3]) < min_len_px:
+            continue
+        x, y, w, h = st[k, :4]
+        rr, cc = np.nonzero(lbl[y:y + h, x:x + w] == k)
+        pts = np.stack([cc, rr], 1).astype(np.float64)
+        rel = pts - pts.mean(0)
+        ev, evec = np.linalg.eigh(rel.T @ rel)
+        if ev[1] < (min_elongation ** 2) * max(ev[0], 1e-9) or 4.0 * np.sqrt(ev[1] / len(pts)) < min_len_px:
+            continue
+        a = float(yaw_from_direction_px(evec[0, 1], evec[1, 1])) % 180.0
+        for b in (a, a + 90.0):
+            b = round(b % 180.0, 1)
+            if all(abs(wrap_half_deg(b - c)) > 3.0 for c in angles):
+                angles.append(b)
+    return sorted(angles)
+
+
+def _largest_part(mask: np.ndarray) -> int:
+    """Pixels of the largest 8-connected part of ``mask`` (0 when empty)."""
+    import cv2
+
+    if not mask.any():
+        return 0
+    n, _lbl, st, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    return int(st[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
+
+
 def _components_where(mask: np.ndarray, keep) -> np.ndarray:
     """The 8-connected components of ``mask`` whose stats rows (cv2: x, y, w, h, area) pass ``keep``."""
     import cv2
@@ -231,10 +268,12 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
         wm = line_open(long_structure, a, wl, ww)
         per_angle.append((a, wm))
         walk_union |= wm
-    # one direction per pixel: the angle with the most support wins (duplicates from the +-2 deg spread)
+    # one direction per pixel: the angle with the longest straight run wins (duplicates from the +-2 deg spread;
+    # where long fingers cross a walkway, the many fingers add up to more deck than the walkway, but each is
+    # shorter than it)
     best: dict[float, np.ndarray] = {}
     taken = np.zeros(structure.shape, bool)
-    for a, wm in sorted(per_angle, key=lambda t: -int(t[1].sum())):
+    for a, wm in sorted(per_angle, key=lambda t: -_largest_part(t[1])):
         own = wm & ~taken
         if own.sum() >= wl:
             best[a] = own

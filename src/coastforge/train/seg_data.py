@@ -20,19 +20,25 @@ from .common import data_main, render_levels
 DATA_GSD_M = 0.2  # samples are stored at this resolution (the truth rasters' own)
 
 
-def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """One synthetic level rendered at ``gsd_m`` and resampled to ``DATA_GSD_M``: (rgb, class ids)."""
+def rendered_level(preset: str, seed: int, gsd_m: float, size_m: float | None):
+    """One synthetic level on a ``DATA_GSD_M`` grid, rendered at ``gsd_m`` and resampled to that grid:
+    (level, rgb)."""
     from ..synth import synthesize_level
     from ..synth.render import mesh_source, render_level
 
     level = synthesize_level(preset, seed, size_m=size_m, grid_m=DATA_GSD_M)
     rgb = render_level(level, mesh_source(None), gsd_m, seed)
-    ids = np.asarray(level.scene.classes, np.uint8)
-    h, w = ids.shape
+    h, w = level.scene.classes.shape
     if rgb.shape[:2] != (h, w):
         interp = cv2.INTER_AREA if rgb.shape[0] > h else cv2.INTER_LINEAR
         rgb = cv2.resize(rgb, (w, h), interpolation=interp)
-    return rgb, ids
+    return level, rgb
+
+
+def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """One synthetic level rendered at ``gsd_m`` and resampled to ``DATA_GSD_M``: (rgb, class ids)."""
+    level, rgb = rendered_level(preset, seed, gsd_m, size_m)
+    return rgb, np.asarray(level.scene.classes, np.uint8)
 
 
 def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,

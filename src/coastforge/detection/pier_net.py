@@ -1,0 +1,91 @@
+"""The pier-deck network: where an image shows a pier's deck (walkways and fingers), as a probability per pixel.
+
+The classical pier detector finds walkways and fingers as long thin runs of a "structure over water" mask made
+by colour thresholds; a deck whose colour is close to the water's, or darker (dark timber), falls out of it, and
+a boat moored alongside merges with the deck into a blob too wide to be one. This network (the segmenter's small
+U-Net with one output, ``coastforge.train.pier_train``, renders only) marks decks apart from the boats on them;
+``ClassicalDetector`` adds its decks to the structure mask the line openings search (``detect.pier_net``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from ..registry import require
+
+TILE_PX, OVERLAP_PX = 768, 48
+FORMAT = "coastforge.pier_net/1"
+
+
+def default_weights() -> Path:
+    return Path(__file__).resolve().parent.parent / "data" / "models" / "piers.onnx"
+
+
+class PierNet:
+    """Deck probabilities from an exported ``piers.onnx`` (its card beside it gives the working GSD)."""
+
+    def __init__(self, weights: str | Path | None = None):
+        self.weights = Path(weights) if weights is not None else default_weights()
+        if not self.weights.is_file():
+            raise InputError(f"pier-deck network {self.weights} not found; train one with "
+                             "python -m coastforge.train.pier_train, or set detect.pier_net = false")
+        card = self.weights.with_suffix(".json")
+        self.meta = {"work_gsd_m": 0.2, "multiple": 16}
+        if card.is_file():
+            try:
+                doc = json.loads(card.read_text(encoding="utf-8"))
+            except json.JSONDecodeError as exc:
+                raise InputError(f"pier-deck network card {card} is not valid JSON ({exc})") from exc
+            if doc.get("format") != FORMAT:
+                raise InputError(f"{card} has format {doc.get('format')!r}, not {FORMAT!r}: not a pier-deck card")
+            self.meta.update({k: doc[k] for k in ("work_gsd_m", "multiple") if k in doc})
+        ort = require("onnxruntime", "onnx", "the pier-deck network")
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = 2
+        opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        try:
+            self.session = ort.InferenceSession(str(self.weights), opts, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime has its own exception types
+            raise InputError(f"{self.weights} is not a loadable ONNX model ({exc})") from exc
+        self.input = self.session.get_inputs()[0].name
+
+    def probability_small(self, rgb: np.ndarray) -> np.ndarray:
+        """Deck probability (h, w) float32 of an RGB uint8 image already at the working GSD."""
+        from ..segmentation.learned import _tiles
+
+        mult = int(self.meta["multiple"])
+        h, w = rgb.shape[:2]
+        out = np.empty((h, w), np.float32)
+        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, OVERLAP_PX, mult):
+            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, OVERLAP_PX, mult):
+                tile = rgb[r0:r1, c0:c1]
+                th, tw = tile.shape[:2]
+                ph, pw = (-th) % mult, (-tw) % mult
+                if ph or pw:
+                    tile = cv2.copyMakeBorder(tile, 0, ph, 0, pw, cv2.BORDER_REFLECT_101 if min(th, tw) > 1
+                                              else cv2.BORDER_REPLICATE)
+                x = np.ascontiguousarray(tile.transpose(2, 0, 1)[None], dtype=np.float32) / 255.0
+                res = self.session.run(None, {self.input: x})[0]
+                if res.ndim != 4 or res.shape[1] != 1:
+                    raise InputError(f"{self.weights} outputs shape {res.shape}; expected (1, 1, H, W)")
+                lg = res[0, 0, :th, :tw]
+                out[kr0:kr1, kc0:kc1] = lg[kr0 - r0:kr1 - r0, kc0 - c0:kc1 - c0]
+        return (1.0 / (1.0 + np.exp(-np.clip(out, -30, 30)))).astype(np.float32)
+
+    def probability(self, rgb: np.ndarray, gsd_m: float, shape: tuple[int, int]) -> np.ndarray:
+        """Deck probability of an image at ``gsd_m`` on a grid of ``shape`` (rows, cols) covering the same area."""
+        work = float(self.meta["work_gsd_m"])
+        h, w = rgb.shape[:2]
+        s = gsd_m / work
+        nw, nh = max(16, int(round(w * s))), max(16, int(round(h * s)))
+        small = rgb if (nw, nh) == (w, h) else cv2.resize(
+            rgb, (nw, nh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+        p = self.probability_small(np.ascontiguousarray(small))
+        if p.shape != tuple(shape):
+            p = cv2.resize(p, (shape[1], shape[0]), interpolation=cv2.INTER_LINEAR)
+        return p
