@@ -166,7 +166,7 @@ def test_the_shipped_network_marks_a_rendered_pier_and_little_else():
 
 def test_a_walkway_crossed_by_many_long_fingers_stays_the_walkway():
     """Six parallel 24 m fingers (more deck than the 60 m walkway they cross) must not take the crossings from
-    it: the direction with the longest straight run wins them."""
+    it: with ``longest_run`` (the network's decks) the direction with the longest straight run wins them."""
     from coastforge.detection.piers import detect_piers
 
     gsd = 0.2
@@ -175,7 +175,7 @@ def test_a_walkway_crossed_by_many_long_fingers_stays_the_walkway():
     for x in range(70, 340, 50):
         m[140:260, x:x + 5] = True  # fingers: 24 m x 1 m, crossing it
     water = ~m
-    dets, _ = detect_piers(m, gsd, angles=[0.0, 90.0], water=water)
+    dets, _ = detect_piers(m, gsd, angles=[0.0, 90.0], water=water, longest_run=True)
     walks = [d for d in dets if d.category == "pier_walkway"]
     assert walks and max(d.length_px for d in walks) * gsd > 50
     assert all(abs(abs(((d.yaw_deg + 90) % 180) - 90)) < 5 for d in walks if d.length_px * gsd > 50)

@@ -352,7 +352,7 @@ class ClassicalDetector:
         piers, pier_mask = detect_piers(pier_struct & ~land, gsd, scale, angles, water=water0,
                                         walkway_min_m=cfg.walkway_min_m, walkway_max_width_m=cfg.walkway_max_width_m,
                                         finger_min_m=cfg.finger_min_m, finger_max_width_m=cfg.finger_max_width_m,
-                                        walk_factor=pf)
+                                        walk_factor=pf, longest_run=deck is not None)
         # boats: bright or coloured cores, grown into the weaker object pixels
         pier_d = cv2.dilate(pier_mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         if cfg.boat_mask == "struct":

@@ -234,12 +234,14 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
                  water: np.ndarray | None = None,
                  walkway_min_m: float = 18.0, walkway_max_width_m: float = 4.0, finger_min_m: float = 5.0,
                  finger_max_width_m: float = 1.6, finger_clear_m: float = 0.8,
-                 walk_factor: int = 1) -> tuple[list[Detection], np.ndarray]:
+                 walk_factor: int = 1, longest_run: bool = False) -> tuple[list[Detection], np.ndarray]:
     """Walkways and fingers in a structure mask at ``gsd_m`` metres per mask pixel.
 
     ``scale`` converts mask pixels to image pixels (mask = image * scale). Returns the detections
     (in image pixels) and the union mask of pier pixels (mask grid). Walkways (wide enough) are
-    searched on a grid ``walk_factor`` times coarser, which divides their cost by its square."""
+    searched on a grid ``walk_factor`` times coarser, which divides their cost by its square. Where two
+    directions' walkways cross, the one with more pixels takes the crossing, or with ``longest_run`` the one with
+    the longest straight run (for clean deck masks, see the loop)."""
     import cv2
 
     if angles is None:
@@ -268,12 +270,15 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
         wm = line_open(long_structure, a, wl, ww)
         per_angle.append((a, wm))
         walk_union |= wm
-    # one direction per pixel: the angle with the longest straight run wins (duplicates from the +-2 deg spread;
-    # where long fingers cross a walkway, the many fingers add up to more deck than the walkway, but each is
-    # shorter than it)
+    # one direction per pixel: the angle with the most support wins (duplicates from the +-2 deg spread); with
+    # ``longest_run``, the angle with the longest straight run: where long fingers cross a walkway, the many
+    # fingers add up to more deck than the walkway, but each is shorter than it. Only on the pier-deck network's
+    # clean decks: in the colour mask, rows of moored boats make long runs too (ships_aerial boat280: a 20 m
+    # "walkway" of hulls across the water between two piers)
+    support = _largest_part if longest_run else (lambda m: int(m.sum()))
     best: dict[float, np.ndarray] = {}
     taken = np.zeros(structure.shape, bool)
-    for a, wm in sorted(per_angle, key=lambda t: -_largest_part(t[1])):
+    for a, wm in sorted(per_angle, key=lambda t: -support(t[1])):
         own = wm & ~taken
         if own.sum() >= wl:
             best[a] = own
