@@ -40,7 +40,7 @@ def test_deck_mask_covers_the_pier_footprints_on_the_scene_grid():
 def tiny_model(tmp_path_factory):
     torch = pytest.importorskip("torch")
     pytest.importorskip("onnx")
-    from coastforge.train.pier_train import export_onnx
+    from coastforge.train.seg_train import export_onnx
     from coastforge.train.seg_model import build_segmenter
 
     torch.manual_seed(0)

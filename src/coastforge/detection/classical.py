@@ -29,7 +29,7 @@ from ..config import DetectConfig
 from ..frames import wrap_half_deg, yaw_from_direction_px
 from ..types import ClassMap, Detection, GeoImage
 from . import heading as hd
-from .piers import component_axes, detect_piers, dominant_angles, labels_in
+from .piers import add_angles, component_axes, detect_piers, dominant_angles, labels_in
 
 
 def _resize(a: np.ndarray, shape: tuple[int, int], nearest: bool = False) -> np.ndarray:
@@ -344,9 +344,7 @@ class ClassicalDetector:
             pier_struct = deck | (struct & (prob >= PIER_NET_NOT_DECK_P))
         angles = dominant_angles(pier_struct & ~cv2.dilate(land.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool))
         if deck is not None:  # the network's decks give their own directions
-            for b in component_axes(deck, cfg.finger_min_m / gsd):
-                if all(abs(wrap_half_deg(b - c)) > 3.0 for c in angles):
-                    angles.append(b)
+            add_angles(angles, component_axes(deck, cfg.finger_min_m / gsd))
         # walkways on a coarser grid (line openings cost ~area x angles), fingers on the work grid
         pf = max(1, min(int(cfg.pier_gsd_m / gsd), 4))
         piers, pier_mask = detect_piers(pier_struct & ~land, gsd, scale, angles, water=water0,

@@ -56,25 +56,15 @@ class PierNet:
 
     def probability_small(self, rgb: np.ndarray) -> np.ndarray:
         """Deck probability (h, w) float32 of an RGB uint8 image already at the working GSD."""
-        from ..segmentation.learned import _tiles
+        from ..segmentation.learned import tiled_logits
 
-        mult = int(self.meta["multiple"])
-        h, w = rgb.shape[:2]
-        out = np.empty((h, w), np.float32)
-        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, OVERLAP_PX, mult):
-            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, OVERLAP_PX, mult):
-                tile = rgb[r0:r1, c0:c1]
-                th, tw = tile.shape[:2]
-                ph, pw = (-th) % mult, (-tw) % mult
-                if ph or pw:
-                    tile = cv2.copyMakeBorder(tile, 0, ph, 0, pw, cv2.BORDER_REFLECT_101 if min(th, tw) > 1
-                                              else cv2.BORDER_REPLICATE)
-                x = np.ascontiguousarray(tile.transpose(2, 0, 1)[None], dtype=np.float32) / 255.0
-                res = self.session.run(None, {self.input: x})[0]
-                if res.ndim != 4 or res.shape[1] != 1:
-                    raise InputError(f"{self.weights} outputs shape {res.shape}; expected (1, 1, H, W)")
-                lg = res[0, 0, :th, :tw]
-                out[kr0:kr1, kc0:kc1] = lg[kr0 - r0:kr1 - r0, kc0 - c0:kc1 - c0]
+        def run(x: np.ndarray) -> np.ndarray:
+            res = self.session.run(None, {self.input: x})[0]
+            if res.ndim != 4 or res.shape[1] != 1:
+                raise InputError(f"{self.weights} outputs shape {res.shape}; expected (1, 1, H, W)")
+            return res
+
+        out = tiled_logits(rgb, run, 1, TILE_PX, OVERLAP_PX, int(self.meta["multiple"]))[..., 0]
         return (1.0 / (1.0 + np.exp(-np.clip(out, -30, 30)))).astype(np.float32)
 
     def probability(self, rgb: np.ndarray, gsd_m: float, shape: tuple[int, int]) -> np.ndarray:

@@ -22,6 +22,16 @@ def labels_in(lab: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
     return table[lab]
 
 
+def add_angles(angles: list[float], more, apart_deg: float = 3.0) -> list[float]:
+    """``angles`` with each of ``more`` (degrees, mod 180) appended unless it lies within ``apart_deg`` of one
+    already there (in place; returned for convenience)."""
+    for b in more:
+        b = round(float(b) % 180.0, 1)
+        if all(abs(wrap_half_deg(b - c)) > apart_deg for c in angles):
+            angles.append(b)
+    return angles
+
+
 def dominant_angles(mask: np.ndarray, n_peaks: int = 4, min_share: float = 0.3) -> list[float]:
     """Dominant line directions (image angle in degrees, [0, 180), CCW from image-right with row up)
     of a binary mask, from the histogram of its edge orientations; each with its perpendicular."""
@@ -50,10 +60,7 @@ def dominant_angles(mask: np.ndarray, n_peaks: int = 4, min_share: float = 0.3) 
             h[(k + d) % 180] = 0
     angles: list[float] = []
     for a in out:
-        for b in (a, a + 90.0):
-            b = round(b % 180.0, 1)
-            if all(abs(wrap_half_deg(b - c)) > 3.0 for c in angles):
-                angles.append(b)
+        add_angles(angles, (a, a + 90.0))
     return sorted(angles)
 
 
@@ -76,11 +83,8 @@ def component_axes(mask: np.ndarray, min_len_px: float, min_elongation: float = 
         ev, evec = np.linalg.eigh(rel.T @ rel)
         if ev[1] < (min_elongation ** 2) * max(ev[0], 1e-9) or 4.0 * np.sqrt(ev[1] / len(pts)) < min_len_px:
             continue
-        a = float(yaw_from_direction_px(evec[0, 1], evec[1, 1])) % 180.0
-        for b in (a, a + 90.0):
-            b = round(b % 180.0, 1)
-            if all(abs(wrap_half_deg(b - c)) > 3.0 for c in angles):
-                angles.append(b)
+        a = float(yaw_from_direction_px(evec[0, 1], evec[1, 1]))
+        add_angles(angles, (a, a + 90.0))
     return sorted(angles)
 
 

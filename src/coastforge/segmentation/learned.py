@@ -94,6 +94,26 @@ def _tiles(n: int, tile: int, overlap: int, multiple: int = 1) -> list[tuple[int
     return [(s, s + size, keeps[i], keeps[i + 1]) for i, s in enumerate(starts)]
 
 
+def tiled_logits(rgb: np.ndarray, run, channels: int, tile: int, overlap: int, multiple: int) -> np.ndarray:
+    """A fully convolutional network's output (h, w, ``channels``) float32 over an RGB uint8 image, window by window
+    (``_tiles``: each keeps its centre, with ``overlap`` of context): ``run`` maps one window (1, 3, H, W) in 0..1,
+    reflect-padded to ``multiple``, to its (1, channels, H, W) output."""
+    h, w = rgb.shape[:2]
+    out = np.empty((h, w, channels), np.float32)
+    for r0, r1, kr0, kr1 in _tiles(h, tile, overlap, multiple):
+        for c0, c1, kc0, kc1 in _tiles(w, tile, overlap, multiple):
+            win = rgb[r0:r1, c0:c1]
+            th, tw = win.shape[:2]
+            ph, pw = (-th) % multiple, (-tw) % multiple
+            if ph or pw:  # reflect-pad to the network's multiple (small images: at least 1 px real)
+                win = cv2.copyMakeBorder(win, 0, ph, 0, pw, cv2.BORDER_REFLECT_101 if min(th, tw) > 1
+                                         else cv2.BORDER_REPLICATE)
+            x = np.ascontiguousarray(win.transpose(2, 0, 1)[None], dtype=np.float32) / 255.0
+            lg = run(x)[0, :, :th, :tw].transpose(1, 2, 0)
+            out[kr0:kr1, kc0:kc1] = lg[kr0 - r0:kr1 - r0, kc0 - c0:kc1 - c0]
+    return out
+
+
 class LearnedSegmenter:
     """Run the shipped (or a given) learned segmentation model on one image."""
 
@@ -131,34 +151,24 @@ class LearnedSegmenter:
     def logits_small(self, rgb: np.ndarray, flips=((),)) -> np.ndarray:
         """Logits (h, w, 8) averaged over the flipped passes ``flips`` (numpy axes of NCHW)."""
         sess = self._session()
-        mult = int(self.meta.get("multiple", 16))
-        overlap = int(self.meta.get("overlap_px", OVERLAP_PX))
-        h, w = rgb.shape[:2]
-        out = np.empty((h, w, N_CLASSES), np.float32)
         name = sess.get_inputs()[0].name
-        for r0, r1, kr0, kr1 in _tiles(h, TILE_PX, overlap, mult):
-            for c0, c1, kc0, kc1 in _tiles(w, TILE_PX, overlap, mult):
-                tile = rgb[r0:r1, c0:c1]
-                th, tw = tile.shape[:2]
-                ph, pw = (-th) % mult, (-tw) % mult
-                if ph or pw:  # reflect-pad to the network's multiple (small images: at least 1 px real)
-                    tile = cv2.copyMakeBorder(tile, 0, ph, 0, pw, cv2.BORDER_REFLECT_101 if min(th, tw) > 1
-                                              else cv2.BORDER_REPLICATE)
-                x = np.ascontiguousarray(tile.transpose(2, 0, 1)[None], dtype=np.float32) / 255.0
-                logits = 0.0
-                for axes in flips:  # test-time flips: averaged logits are steadier at class borders
-                    xi = np.ascontiguousarray(np.flip(x, axes)) if axes else x
-                    try:
-                        res = sess.run(None, {name: xi})[0]
-                    except Exception as exc:
-                        raise BackendUnavailable(f"learned segmenter {self.weights} failed on a {tw}x{th} tile "
-                                                 f"({exc})") from exc
-                    if res.ndim != 4 or res.shape[1] != N_CLASSES:
-                        raise InputError(f"{self.weights} outputs shape {res.shape}; expected (1, {N_CLASSES}, H, W)")
-                    logits = logits + (np.flip(res, axes) if axes else res)
-                lg = (logits / len(flips))[0, :, :th, :tw].transpose(1, 2, 0)
-                out[kr0:kr1, kc0:kc1] = lg[kr0 - r0:kr1 - r0, kc0 - c0:kc1 - c0]
-        return out
+
+        def run(x: np.ndarray) -> np.ndarray:
+            logits = 0.0
+            for axes in flips:  # test-time flips: averaged logits are steadier at class borders
+                xi = np.ascontiguousarray(np.flip(x, axes)) if axes else x
+                try:
+                    res = sess.run(None, {name: xi})[0]
+                except Exception as exc:
+                    raise BackendUnavailable(f"learned segmenter {self.weights} failed on a {x.shape[3]}x{x.shape[2]} "
+                                             f"tile ({exc})") from exc
+                if res.ndim != 4 or res.shape[1] != N_CLASSES:
+                    raise InputError(f"{self.weights} outputs shape {res.shape}; expected (1, {N_CLASSES}, H, W)")
+                logits = logits + (np.flip(res, axes) if axes else res)
+            return logits / len(flips)
+
+        return tiled_logits(rgb, run, N_CLASSES, TILE_PX, int(self.meta.get("overlap_px", OVERLAP_PX)),
+                            int(self.meta.get("multiple", 16)))
 
     def segment(self, image: GeoImage, seed: int = 0) -> ClassMap:
         rgb = image.rgb

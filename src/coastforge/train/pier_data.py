@@ -14,8 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .common import data_main, render_levels
-from .seg_data import DATA_GSD_M, rendered_level
+from .common import data_main
+from .seg_data import rendered_level, write_levels
 
 
 def deck_mask(scene) -> np.ndarray:
@@ -33,7 +33,7 @@ def deck_mask(scene) -> np.ndarray:
 
 
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """One synthetic level rendered at ``gsd_m`` and resampled to ``DATA_GSD_M``: (rgb, deck mask)."""
+    """One synthetic level rendered at ``gsd_m`` and resampled to ``seg_data.DATA_GSD_M``: (rgb, deck mask)."""
     level, rgb = rendered_level(preset, seed, gsd_m, size_m)
     return rgb, deck_mask(level.scene)
 
@@ -41,18 +41,7 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> 
 def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
              gsd_range: tuple[float, float] = (0.08, 0.35), minutes: float | None = None) -> Path:
     """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written levels)."""
-    from ..fsio import write_png
-
-    def make_item(preset: str, seed: int, gsd: float, size: float, out: Path) -> tuple[dict, str]:
-        rgb, mask = level_sample(preset, seed, gsd, size)
-        name = f"{preset}_{seed}"
-        write_png(out / f"{name}.png", rgb)
-        write_png(out / f"{name}_piers.png", mask)
-        return ({"image": f"{name}.png", "piers": f"{name}_piers.png", "preset": preset, "seed": seed,
-                 "render_gsd_m": round(gsd, 4)}, f"deck={int(mask.sum())}px")
-
-    return render_levels(out_dir, seeds, make_item, stage="pier_data", index_head={"gsd_m": DATA_GSD_M},
-                         presets=presets, gsd_range=gsd_range, size_range_m=(80.0, 180.0), minutes=minutes)
+    return write_levels(out_dir, seeds, level_sample, "piers", "pier_data", presets, gsd_range, minutes)
 
 
 def main(argv: list[str] | None = None) -> None:

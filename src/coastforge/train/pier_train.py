@@ -101,13 +101,6 @@ def sample(levels, rng: np.random.Generator, deck_share: float = 0.6) -> tuple[n
     return np.ascontiguousarray(x.transpose(2, 0, 1)), np.ascontiguousarray(m, dtype=np.float32)
 
 
-def export_onnx(net, path: Path) -> Path:
-    """Export in eval mode with dynamic H, W (multiples of 16); input RGB 0..1, output the deck logit."""
-    from .seg_train import export_onnx as export
-
-    return export(net, path)
-
-
 def evaluate(onnx_path: Path, levels) -> dict:
     """Deck IoU, precision and recall (probability >= 0.5) over held-out levels, pooled."""
     from ..detection.pier_net import PierNet
@@ -131,6 +124,7 @@ def train(data: list[Path], out_dir: Path, minutes: float = 30.0, batch: int = 1
 
     torch = require("torch", "train", "training the pier-deck network")
     from .seg_model import build_segmenter
+    from .seg_train import export_onnx  # input RGB 0..1, output the deck logit (1, 1, H, W)
 
     torch.set_num_threads(threads)
     torch.manual_seed(stage_seed(seed, "train", "piers", "torch"))

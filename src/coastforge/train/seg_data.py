@@ -41,21 +41,30 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None) -> 
     return rgb, np.asarray(level.scene.classes, np.uint8)
 
 
-def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
-             gsd_range: tuple[float, float] = (0.08, 0.35), minutes: float | None = None) -> Path:
-    """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written levels)."""
+def write_levels(out_dir: str | Path, seeds: list[int], sample, key: str, stage: str,
+                 presets: list[str] | None = None, gsd_range: tuple[float, float] = (0.08, 0.35),
+                 minutes: float | None = None) -> Path:
+    """Render one level per seed (preset cycling) into ``out_dir`` as ``<preset>_<seed>.png`` and its label raster
+    ``<preset>_<seed>_<key>.png`` from ``sample(preset, seed, gsd_m, size_m) -> (rgb, labels)``; resumable (skips
+    written levels). ``stage`` names the random stream of the render GSDs and sizes."""
     from ..fsio import write_png
 
     def make_item(preset: str, seed: int, gsd: float, size: float, out: Path) -> tuple[dict, str]:
-        rgb, ids = level_sample(preset, seed, gsd, size)
+        rgb, labels = sample(preset, seed, gsd, size)
         name = f"{preset}_{seed}"
         write_png(out / f"{name}.png", rgb)
-        write_png(out / f"{name}_classes.png", ids)
-        return ({"image": f"{name}.png", "classes": f"{name}_classes.png", "preset": preset, "seed": seed,
+        write_png(out / f"{name}_{key}.png", labels)
+        return ({"image": f"{name}.png", key: f"{name}_{key}.png", "preset": preset, "seed": seed,
                  "render_gsd_m": round(gsd, 4)}, f"size={size:.0f}")
 
-    return render_levels(out_dir, seeds, make_item, stage="seg_data", index_head={"gsd_m": DATA_GSD_M},
+    return render_levels(out_dir, seeds, make_item, stage=stage, index_head={"gsd_m": DATA_GSD_M},
                          presets=presets, gsd_range=gsd_range, size_range_m=(80.0, 180.0), minutes=minutes)
+
+
+def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = None,
+             gsd_range: tuple[float, float] = (0.08, 0.35), minutes: float | None = None) -> Path:
+    """Render one level per seed (preset cycling) into ``out_dir``; resumable (skips written levels)."""
+    return write_levels(out_dir, seeds, level_sample, "classes", "seg_data", presets, gsd_range, minutes)
 
 
 def main(argv: list[str] | None = None) -> None:
