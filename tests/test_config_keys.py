@@ -328,6 +328,16 @@ def detect_run(cfg: Config, w: World):
     return detect(w.image, cfg.detect, class_map=w.class_map, seed=0)
 
 
+def detect_cut(cfg: Config, w: World):
+    """``detect`` on the level cut through the middle of its first boat (the right half of it left out)."""
+    from coastforge.detection import detect
+
+    boats = [d for d in detect(w.image, replace(cfg.detect, min_inside=0.0), seed=0) if d.category == "boat"]
+    b = boats[0]
+    rgb = np.ascontiguousarray(w.image.rgb[:, :int(round(b.cx_px))])
+    return detect(GeoImage(rgb, Grid(rgb.shape[1], rgb.shape[0], GSD)), cfg.detect, seed=0)
+
+
 def detect_hybrid(cfg: Config, w: World):
     """The hybrid backend, its classical half's boats given (as the side process gives them)."""
     from concurrent.futures import Future
@@ -555,6 +565,7 @@ PROBES: dict[str, Probe] = {
     "detect.flip_tta": _p(detect_run, False, **LEARNED),
     "detect.row_context": _p(detect_run, 0.3, **LEARNED),
     "detect.min_score": _p(detect_run, 0.8),
+    "detect.min_inside": _p(detect_cut, 0.0),
     "detect.slice_px": _p(detect_onnx, 256),
     "detect.slice_overlap_px": _p(detect_onnx, 32, detect__slice_px=160),
     "detect.nms_iou": _p(detect_onnx, 0.0, detect__slice_px=160),

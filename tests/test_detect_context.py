@@ -4,7 +4,7 @@ import numpy as np
 
 from coastforge.classes import ASPHALT, GRASS, WATER
 from coastforge.config import DetectConfig
-from coastforge.detection import boats_off_water
+from coastforge.detection import boats_off_water, drop_cut_by_frame, inside_share
 from coastforge.types import ClassMap, Detection, Grid
 
 GSD = 0.125
@@ -114,3 +114,16 @@ def test_vehicles_on_riprap_go_and_vehicles_in_water_are_boats():
     assert notes == {"vehicles_in_water_made_boats": 1, "vehicles_on_riprap_dropped": 2}
     out, _ = recategorise(dets, cm, DetectConfig(vehicle_max_wet=0.7))
     assert half_on_riprap in out and on_riprap not in out
+
+
+def test_objects_mostly_outside_the_picture_are_left_out_and_piers_run_on():
+    # a 200 x 100 px image; boats 40 px long lying along x
+    half_out = Detection("boat", 0.9, 200.0, 50.0, 40.0, 10.0, 0.0)   # 20 of 40 px inside
+    most_in = Detection("boat", 0.9, 185.0, 50.0, 40.0, 10.0, 0.0)    # 35 of 40 px inside
+    car_top = Detection("vehicle", 0.9, 60.0, 1.0, 20.0, 8.0, 90.0)   # 11 of 20 px inside
+    walkway = Detection("pier_walkway", 0.8, 190.0, 20.0, 60.0, 4.0, 0.0)
+    inner = Detection("boat", 0.9, 100.0, 50.0, 40.0, 10.0, 30.0)
+    assert abs(inside_share(half_out, 200, 100) - 0.5) < 1e-6
+    kept = drop_cut_by_frame([half_out, most_in, car_top, walkway, inner], 200, 100, 0.7)
+    assert kept == [most_in, walkway, inner]
+    assert len(drop_cut_by_frame([half_out, most_in, car_top, walkway, inner], 200, 100, 0.0)) == 5

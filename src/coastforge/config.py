@@ -106,6 +106,10 @@ class DetectConfig:
     # learned backend: a boat or vehicle the network is unsure of gains this much score for each confident one
     # of its class moored or parked beside it, parallel (at most two: ``detection.learned.row_context``)
     row_context: float = 0.05
+    # a boat or vehicle whose box lies less than this share inside the image is left out: the picture's
+    # edge cuts it, so its size and kind are guesses, and the neighbouring image of a mosaic holds it
+    # (``detection.drop_cut_by_frame``; 0 keeps them all)
+    min_inside: float = 0.7
     min_boat_length_m: float = 2.0
     max_boat_length_m: float = 60.0
     min_vehicle_length_m: float = 3.0

@@ -460,7 +460,7 @@ def detect_tiled(path, grid: Grid | None = None, config: DetectConfig | None = N
     An object is found whole when ``overlap_px`` ≥ half its length; longer pier walkways are joined.
     ``side`` (a ``runtime.SideProcess``): the hybrid detector's classical half of each tile runs there,
     beside its network here, as in a whole-image run."""
-    from ..detection import detect
+    from ..detection import detect, drop_cut_by_frame
 
     src = _source(path, grid, source)
     cfg = config or DetectConfig()
@@ -485,14 +485,14 @@ def detect_tiled(path, grid: Grid | None = None, config: DetectConfig | None = N
                 from ..detection.hybrid import classical_part
 
                 opts["classical_dets"] = side.submit(classical_part, img, cm, cfg, seed)
-            dets = detect(img, cfg, class_map=cm, backend=backend, seed=seed, **opts)
+            dets = detect(img, cfg, class_map=cm, backend=backend, seed=seed, whole_image=False, **opts)
         shifted = [_shift(d if keep_masks else replace(d, mask=None, mask_origin_px=None), t.col_off, t.row_off)
                    for d in dets]
         per_tile.append((t, shifted))
         del img, cm
         if progress:
             progress(k + 1, len(tiles))
-    return merge_tile_detections(per_tile, W, H, iou=cfg.nms_iou)
+    return drop_cut_by_frame(merge_tile_detections(per_tile, W, H, iou=cfg.nms_iou), W, H, cfg.min_inside)
 
 
 # ----------------------------------------------------------------------------------------- terrain
