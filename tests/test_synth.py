@@ -295,3 +295,24 @@ def test_training_mix_shows_the_rare_types_and_leaves_benchmark_levels_alone():
     assert not any(bench[t] for t in new)
     assert train["hatchback"] >= 3 and train["bus"] + train["box_truck"] >= 1
     assert train["rowboat"] + train["center_console"] + train["dinghy"] + train["kayak"] >= 5
+
+
+def test_rafted_mix_ties_boats_alongside_end_to_end_and_two_deep():
+    """The detector's rafted training data: more boats alongside walkways, closer together, some rafted
+    outboard of another; the benchmark's levels draw nothing of it."""
+    from collections import Counter
+
+    from coastforge.synth.layout import RAFTED_MIX, TRAINING_MIX
+
+    def count(mix):
+        c = Counter()
+        for preset, seed in (("marina", 211), ("simple_pier_a", 212), ("pier_parking", 213), ("marina", 214)):
+            for o in synthesize_level(preset, seed, size_m=110, mix=mix).scene.objects:
+                if o.category == "boat":
+                    c[o.attrs.get("bow")] += 1
+                    c["rafted"] += bool(o.attrs.get("rafted"))
+        return c
+
+    train, rafted = count(TRAINING_MIX), count(RAFTED_MIX)
+    assert rafted["alongside"] >= 2 * max(1, train["alongside"])
+    assert rafted["rafted"] >= 1 and train["rafted"] == 0

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import shapely
@@ -120,6 +120,12 @@ class Mix:
     extra_boats: tuple[str, ...] = ()  # added to every berth's and anchorage's choice of boat types
     bus_p: float = 0.35  # a bus beside a car park's last row
     aisle_p: float = 0.0  # a large vehicle (bus, box truck) driving along a car park's aisle
+    # piers: a side of a walkway left without fingers (its boats then lie alongside), the gap between boats
+    # tied alongside, and a second boat rafted outboard of one (real marinas pack them end to end and
+    # several deep: the ``RAFTED_MIX`` for training the detector)
+    finger_drop_p: float = 0.0
+    side_gap_m: tuple[float, float] = (1.0, 4.0)
+    raft_p: float = 0.0
 
     def prior(self, asset_id: str) -> float:
         return dict(self.boat_prior).get(asset_id, 0.5)
@@ -133,6 +139,8 @@ TRAINING_MIX = Mix(
                 ("center_console", 0.7)),
     extra_boats=("dinghy", "kayak", "rowboat", "center_console"),
     bus_p=0.85, aisle_p=0.6)
+RAFTED_MIX = replace(TRAINING_MIX, finger_drop_p=0.5, side_gap_m=(0.35, 1.5), raft_p=0.3)
+MIXES = {"benchmark": BENCHMARK_MIX, "training": TRAINING_MIX, "rafted": RAFTED_MIX}
 
 
 class Layout:
@@ -325,6 +333,19 @@ class PierSpec:
     seg_len: float = 0.0  # nominal walkway segment length (0: the asset's length)
 
 
+def _raft_outboard(layout: Layout, rng: np.random.Generator, spec: PierSpec, c: np.ndarray, d: np.ndarray,
+                   out: np.ndarray, width: float, length: float, attrs: dict) -> None:
+    """A boat rafted alongside the outer side of the boat at ``c`` (beam ``width``), no longer than it."""
+    pick = pick_boat(layout, rng, length, 5.0, 3.0, spec.boat_types)
+    if pick is None:
+        return
+    t_id, sc = pick
+    bd = layout.dims(t_id)
+    c2 = c + d * rng.uniform(-0.15, 0.15) * length + out * (width / 2 + rng.uniform(0.1, 0.5) + bd.width_m * sc / 2)
+    yaw = angle_of(*d) + rng.normal(0, 2.0) + (180.0 if rng.random() < 0.3 else 0.0)
+    layout.try_boat(t_id, c2[0], c2[1], yaw, sc, {**attrs, "bow": "alongside", "rafted": True}, clearance=0.05)
+
+
 def add_pier(layout: Layout, spec: PierSpec, structure: str, rng: np.random.Generator) -> list[PlacedObject]:
     """A walkway from land over the water with fingers, a T-head and boats. Returns the pier segments."""
     a = math.radians(spec.angle_dev_deg)
@@ -373,7 +394,10 @@ def add_pier(layout: Layout, spec: PierSpec, structure: str, rng: np.random.Gene
     fingers: dict[int, list[float]] = {s: [] for s in spec.sides}
     t0 = t_water + spec.pitch * rng.uniform(0.3, 0.8)
     ts = np.arange(t0, total - spec.finger_w / 2 - 0.3, spec.pitch)
-    for s in spec.sides:
+    finger_sides = spec.sides
+    if layout.mix.finger_drop_p > 0:  # no draw otherwise: the benchmark's levels stay as they were
+        finger_sides = tuple(s for s in spec.sides if rng.random() >= layout.mix.finger_drop_p)
+    for s in finger_sides:
         for t in ts:
             c = start + d * t + n * s * (spec.walk_w / 2 + spec.finger_len / 2)
             fp = obox(c[0], c[1], spec.finger_len, spec.finger_w, angle_of(*(n * s)))
@@ -454,8 +478,10 @@ def add_pier(layout: Layout, spec: PierSpec, structure: str, rng: np.random.Gene
                 if rng.random() < spec.occupancy:
                     c = start + d * (t + L / 2) + n * s * (spec.walk_w / 2 + 0.4 + W / 2)
                     yaw = heading(d)[0] if rng.random() < 0.85 else heading(-d)[0]
-                    layout.try_boat(t_id, c[0], c[1], yaw, sc, {**attrs, "bow": "alongside"})
-                t += L + rng.uniform(1.0, 4.0)
+                    placed = layout.try_boat(t_id, c[0], c[1], yaw, sc, {**attrs, "bow": "alongside"})
+                    if placed is not None and layout.mix.raft_p > 0 and rng.random() < layout.mix.raft_p:
+                        _raft_outboard(layout, rng, spec, c, d, n * s, W, L, attrs)
+                t += L + rng.uniform(*layout.mix.side_gap_m)
     # side-tied boats along the outer face of the T-head
     if head is not None:
         c0 = np.array([head.u, head.v]) + d * (spec.walk_w / 2)

@@ -88,17 +88,18 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
                  looks: str = "kit") -> tuple[np.ndarray, list[list[float]]]:
     """One synthetic level rendered at ``gsd_m`` and resampled to ``work_gsd_m``: (rgb, boxes).
 
-    ``mix="training"`` draws the rare asset types more often (``synth.layout.TRAINING_MIX``); ``library``
+    ``mix="training"`` draws the rare asset types more often (``synth.layout.TRAINING_MIX``), ``mix="rafted"``
+    also ties boats alongside walkways end to end and rafts some two deep (``RAFTED_MIX``); ``library``
     fills the layout's roles with that library's assets (other looks than the kit's); ``looks="varied"``
     repaints about half the boats (``vary_looks``), ``looks="covers"`` covers about half (``vary_covers``)."""
     from .. import frames
     from ..rng import stage_rng
     from ..synth import synthesize_level
-    from ..synth.layout import BENCHMARK_MIX, TRAINING_MIX
+    from ..synth.layout import MIXES
     from ..synth.render import mesh_source, render_level
 
     level = synthesize_level(preset, seed, size_m=size_m, library=library,
-                             mix=TRAINING_MIX if mix == "training" else BENCHMARK_MIX)
+                             mix=MIXES[mix])
     if looks == "varied":
         level = vary_looks(level, stage_rng(seed, "train", "detector_data", "looks"))
     elif looks == "covers":
