@@ -29,6 +29,7 @@ from ..rng import stage_rng, stage_seed
 CROP = 160
 FORMAT = "coastforge.pier_net/1"
 WORK_GSD_M = 0.2
+COARSE_GSD_M = (0.3, 1.2)  # the GSDs ``augment(coarse=...)`` imitates
 
 
 def load_levels(dirs: list[Path]) -> list[tuple[int, np.ndarray, np.ndarray]]:
@@ -62,7 +63,21 @@ def _repaint_decks(img: np.ndarray, mask: np.ndarray, rng: np.random.Generator) 
     return cv2.cvtColor(lab.astype(np.uint8), cv2.COLOR_LAB2RGB)
 
 
-def augment(rgb: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def coarsen(rgb: np.ndarray, factor: float) -> np.ndarray:
+    """``rgb`` as an image ``factor`` times coarser looks once the network's input resampling has brought it
+    back to the working GSD (area-averaged down, bilinear up: ``PierNet.probability``'s path)."""
+    h, w = rgb.shape[:2]
+    small = cv2.resize(rgb, (max(2, round(w / factor)), max(2, round(h / factor))), interpolation=cv2.INTER_AREA)
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def augment(rgb: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
+            coarse: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A randomised look of one crop; with probability ``coarse`` it is also made as coarse as an image of
+    0.3-1.2 m/px (the renders are 0.08-0.35 m/px; real marina photos go to 1 m/px)."""
+    if coarse and rng.random() < coarse:
+        rgb = coarsen(rgb, math.exp(rng.uniform(math.log(COARSE_GSD_M[0] / WORK_GSD_M),
+                                                math.log(COARSE_GSD_M[1] / WORK_GSD_M))))
     if rng.random() < 0.5:
         rgb = _repaint_decks(rgb, cv2.dilate(mask, np.ones((3, 3), np.uint8)) if rng.random() < 0.3 else mask, rng)
     x = rgb.astype(np.float32) / 255.0
@@ -79,7 +94,8 @@ def augment(rgb: np.ndarray, mask: np.ndarray, rng: np.random.Generator) -> tupl
     return np.clip(x, 0, 1), mask
 
 
-def sample(levels, rng: np.random.Generator, deck_share: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
+def sample(levels, rng: np.random.Generator, deck_share: float = 0.6,
+           coarse: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """One augmented crop (3, CROP, CROP) float32 in 0..1 and its mask (CROP, CROP) float32."""
     _seed, rgb, mask = levels[int(rng.integers(len(levels)))]
     s = float(math.exp(rng.uniform(math.log(0.8), math.log(1.25))))
@@ -97,17 +113,20 @@ def sample(levels, rng: np.random.Generator, deck_share: float = 0.6) -> tuple[n
     if side != CROP:
         im = cv2.resize(im, (CROP, CROP), interpolation=cv2.INTER_AREA if side > CROP else cv2.INTER_LINEAR)
         m = cv2.resize(m, (CROP, CROP), interpolation=cv2.INTER_NEAREST)
-    x, m = augment(im, m, rng)
+    x, m = augment(im, m, rng, coarse)
     return np.ascontiguousarray(x.transpose(2, 0, 1)), np.ascontiguousarray(m, dtype=np.float32)
 
 
-def evaluate(onnx_path: Path, levels) -> dict:
-    """Deck IoU, precision and recall (probability >= 0.5) over held-out levels, pooled."""
+def evaluate(onnx_path: Path, levels, gsd_m: float = WORK_GSD_M) -> dict:
+    """Deck IoU, precision and recall (probability >= 0.5) over held-out levels, pooled; with ``gsd_m``
+    coarser than the working GSD, the levels are first made that coarse (``coarsen``)."""
     from ..detection.pier_net import PierNet
 
     net = PierNet(onnx_path)
     tp = fp = fn = 0
     for _seed, rgb, mask in levels:
+        if gsd_m > WORK_GSD_M:
+            rgb = coarsen(rgb, gsd_m / WORK_GSD_M)
         pred = net.probability_small(rgb) >= 0.5
         t = mask > 0
         tp += int((pred & t).sum())
@@ -118,7 +137,7 @@ def evaluate(onnx_path: Path, levels) -> dict:
 
 
 def train(data: list[Path], out_dir: Path, minutes: float = 30.0, batch: int = 12, lr: float = 3e-3,
-          width: int = 12, seed: int = 1, threads: int = 2) -> Path:
+          width: int = 12, seed: int = 1, threads: int = 2, coarse: float = 0.0) -> Path:
     from ..fsio import atomic_write_text
     from ..registry import require
 
@@ -145,10 +164,10 @@ def train(data: list[Path], out_dir: Path, minutes: float = 30.0, batch: int = 1
         "datasets": [{"name": "coastforge synthetic levels (coastforge.train.pier_data), every preset",
                       "licence": "Apache-2.0 (this project)", "levels": len(levels), "seeds": [min(seeds), max(seeds)]}],
         "training": {"seed": seed, "batch": batch, "crop_px": CROP, "lr": lr, "width": width, "threads": threads,
-                     "minutes": minutes, "held_out_levels": [s for s, _, _ in held],
+                     "minutes": minutes, "coarse": coarse, "held_out_levels": [s for s, _, _ in held],
                      "command": f"python -m coastforge.train.pier_data --out DATA --seeds {min(seeds)}:{max(seeds) + 1} "
                                 f"&& python -m coastforge.train.pier_train --data DATA --out OUT --minutes {minutes:g} "
-                                f"--seed {seed}"},
+                                f"--seed {seed}" + (f" --coarse {coarse:g}" if coarse else "")},
         "limits": "trained on renders only: no real photograph with labelled pier decks was available"}
     t0 = time.time()
     step, run = 0, 0.0
@@ -160,7 +179,7 @@ def train(data: list[Path], out_dir: Path, minutes: float = 30.0, batch: int = 1
             break
         for g in opt.param_groups:
             g["lr"] = lr * (min(1.0, frac / 0.05) if frac < 0.05 else 0.5 * (1 + math.cos(math.pi * frac)))
-        xs, ys = zip(*(sample(train_lv, rng) for _ in range(batch)))
+        xs, ys = zip(*(sample(train_lv, rng, coarse=coarse) for _ in range(batch)))
         x, y = torch.from_numpy(np.stack(xs)), torch.from_numpy(np.stack(ys))[:, None]
         logits = net(x - 0.5)
         loss = torch.nn.functional.binary_cross_entropy_with_logits(logits, y, pos_weight=pos)
@@ -179,6 +198,8 @@ def train(data: list[Path], out_dir: Path, minutes: float = 30.0, batch: int = 1
     card["training"]["steps"] = step
     card["training"]["params"] = int(sum(p.numel() for p in net.parameters()))
     card["held_out"] = evaluate(onnx_path, held)
+    if coarse:
+        card["held_out_coarse"] = {f"{g:g} m/px": evaluate(onnx_path, held, g) for g in (0.5, 1.0)}
     atomic_write_text(card_path, json.dumps(card, indent=1) + "\n")
     print(f"done: {onnx_path}, {step} steps, held-out {card['held_out']}", flush=True)
     return onnx_path
@@ -194,8 +215,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--width", type=int, default=12)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--coarse", type=float, default=0.0,
+                    help="share of crops made as coarse as 0.3-1.2 m/px images (default 0)")
     a = ap.parse_args(argv)
-    train([Path(d) for d in a.data], Path(a.out), a.minutes, a.batch, a.lr, a.width, a.seed, a.threads)
+    train([Path(d) for d in a.data], Path(a.out), a.minutes, a.batch, a.lr, a.width, a.seed, a.threads,
+          a.coarse)
 
 
 if __name__ == "__main__":
