@@ -112,6 +112,8 @@ def test_the_classical_detector_finds_a_deck_only_the_network_sees(monkeypatch):
 class _Stand:
     """The network, stood in for by a known deck mask (probability 1 on it, 0 elsewhere)."""
 
+    max_gsd_m = 0.4
+
     def __init__(self, deck):
         self.deck = deck
 

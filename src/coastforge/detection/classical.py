@@ -207,9 +207,7 @@ def _local_std(x: np.ndarray, k: int) -> np.ndarray:
 
 
 PIER_NET_P = 0.5  # a pixel the pier-deck network gives at least this probability is a deck
-# ... run on images no coarser than this (it learned from renders of 0.08-0.35 m/px; coarser ones would be
-# upsampled several times for it, and their decks are a few pixels wide)
-PIER_NET_MAX_GSD_M = 0.4
+# (it runs on images no coarser than its card's max_gsd_m: ``PierNet.max_gsd_m``)
 PIER_NET_CLOSE_M = 1.0  # gaps in the network's decks up to twice this are closed
 PIER_NET_NOT_DECK_P = 0.1  # structure the network gives less than this is no deck
 
@@ -334,7 +332,7 @@ class ClassicalDetector:
         # deck they make a blob too wide for one) leaves it (``detect.pier_net``)
         pier_struct = struct
         deck = None
-        if cfg.pier_net and gsd <= PIER_NET_MAX_GSD_M:
+        if cfg.pier_net and gsd <= self.pier_net().max_gsd_m:
             prob = self.pier_net().probability(rgb, gsd, struct.shape)
             deck = (prob >= PIER_NET_P) & near
             # a boat moored over a deck's edge breaks it for a metre or two: closed (fingers lie further apart)

@@ -19,6 +19,9 @@ from ..errors import InputError
 from ..registry import require
 
 TILE_PX, OVERLAP_PX = 768, 48
+# images coarser than this go without the network unless its card says otherwise (``max_gsd_m``): one trained
+# on 0.08-0.35 m/px renders sees a coarser image upsampled several times, its decks a few pixels wide
+DEFAULT_MAX_GSD_M = 0.4
 FORMAT = "coastforge.pier_net/1"
 
 
@@ -35,7 +38,8 @@ class PierNet:
             raise InputError(f"pier-deck network {self.weights} not found; train one with "
                              "python -m coastforge.train.pier_train, or set detect.pier_net = false")
         card = self.weights.with_suffix(".json")
-        self.meta = {"work_gsd_m": 0.2, "multiple": 16}
+        # max_gsd_m: the coarsest image it is meant for (a card without it: trained on 0.08-0.35 m/px renders)
+        self.meta = {"work_gsd_m": 0.2, "multiple": 16, "max_gsd_m": DEFAULT_MAX_GSD_M}
         if card.is_file():
             try:
                 doc = json.loads(card.read_text(encoding="utf-8"))
@@ -43,7 +47,7 @@ class PierNet:
                 raise InputError(f"pier-deck network card {card} is not valid JSON ({exc})") from exc
             if doc.get("format") != FORMAT:
                 raise InputError(f"{card} has format {doc.get('format')!r}, not {FORMAT!r}: not a pier-deck card")
-            self.meta.update({k: doc[k] for k in ("work_gsd_m", "multiple") if k in doc})
+            self.meta.update({k: doc[k] for k in ("work_gsd_m", "multiple", "max_gsd_m") if k in doc})
         ort = require("onnxruntime", "onnx", "the pier-deck network")
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = 2
@@ -53,6 +57,10 @@ class PierNet:
         except Exception as exc:  # onnxruntime has its own exception types
             raise InputError(f"{self.weights} is not a loadable ONNX model ({exc})") from exc
         self.input = self.session.get_inputs()[0].name
+
+    @property
+    def max_gsd_m(self) -> float:
+        return float(self.meta["max_gsd_m"])
 
     def probability_small(self, rgb: np.ndarray) -> np.ndarray:
         """Deck probability (h, w) float32 of an RGB uint8 image already at the working GSD."""

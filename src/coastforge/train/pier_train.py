@@ -23,6 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..detection.pier_net import DEFAULT_MAX_GSD_M
 from ..errors import InputError
 from ..rng import stage_rng, stage_seed
 
@@ -160,6 +161,7 @@ def train(data: list[Path], out_dir: Path, minutes: float = 30.0, batch: int = 1
     seeds = [s for s, _, _ in levels]
     card: dict = {
         "format": FORMAT, "work_gsd_m": WORK_GSD_M, "multiple": 16, "input": "RGB 0..1, NCHW",
+        "max_gsd_m": COARSE_GSD_M[1] if coarse else DEFAULT_MAX_GSD_M,
         "output": "deck logit (1, 1, H, W)",
         "datasets": [{"name": "coastforge synthetic levels (coastforge.train.pier_data), every preset",
                       "licence": "Apache-2.0 (this project)", "levels": len(levels), "seeds": [min(seeds), max(seeds)]}],
