@@ -438,3 +438,20 @@ def test_tiled_and_whole_image_runs_share_one_stage_order(scene_png, tmp_path):
     pw, pt = (json.loads(r.scene_path.read_text())["provenance"] for r in (whole, tiled))
     assert set(pw["background_s"]) == set(pt["background_s"])
     assert set(pt) - set(pw) == {"tiled"} and set(pw) <= set(pt)
+
+
+def test_detect_tiled_leaves_out_objects_cut_by_the_image_edge_not_by_a_tile_edge(scene_png):
+    """Each tile reports a boat half past its left edge: on the image's left edge that boat is mostly outside
+    the picture and goes (``detect.min_inside``); on a tile edge inside the image it is kept."""
+    def half_out(image: GeoImage, class_map, seed: int) -> list[Detection]:
+        return [Detection("boat", 0.9, 1.0, image.grid.height_px / 2, 40.0, 10.0, 0.0)]
+
+    src = tiling.open_source(scene_png, gsd_m=0.2)
+    tiled = tiling.detect_tiled(src, tile_px=TILE, overlap_px=OVERLAP, detector=half_out)
+    offsets = sorted({t.col_off for t in tiling.iter_windows(600, 600, TILE, OVERLAP)})
+    assert len(offsets) > 1
+    assert not [d for d in tiled if d.cx_px < 20]
+    assert {round(d.cx_px) for d in tiled} == {o + 1 for o in offsets[1:]}
+    kept = tiling.detect_tiled(src, tile_px=TILE, overlap_px=OVERLAP, detector=half_out,
+                               config=DetectConfig(min_inside=0.0))
+    assert [d for d in kept if d.cx_px < 20]
