@@ -68,6 +68,17 @@ def test_pier_net_refuses_a_missing_model_or_another_card(tiny_model, tmp_path):
     other.with_suffix(".json").write_text(json.dumps({"format": "coastforge.segmenter/1"}))
     with pytest.raises(InputError, match="not a pier-deck card"):
         PierNet(other)
+    other.with_suffix(".json").write_text(json.dumps({"format": FORMAT, "max_gsd_m": "coarse"}))
+    with pytest.raises(InputError, match="max_gsd_m"):
+        PierNet(other)
+
+
+def test_the_card_says_how_coarse_an_image_the_network_is_for(tiny_model, tmp_path):
+    assert PierNet(tiny_model).max_gsd_m == 0.4  # a card without it: the renders' range
+    other = tmp_path / "piers.onnx"
+    other.write_bytes(tiny_model.read_bytes())
+    other.with_suffix(".json").write_text(json.dumps({"format": FORMAT, "max_gsd_m": 1.2}))
+    assert PierNet(other).max_gsd_m == 1.2
 
 
 def test_training_crops_are_turned_jittered_and_keep_their_masks():

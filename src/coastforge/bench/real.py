@@ -128,8 +128,9 @@ def match_centres_in_quads(pred_xy: np.ndarray, quads: np.ndarray,
 
 def cut_by_edge(det, width_px: int, height_px: int) -> bool:
     """Whether a box reaches past the image's edge (the object is cut by the crop)."""
-    c = det.corners_px()
-    return bool((c < 0).any() or (c[:, 0] > width_px).any() or (c[:, 1] > height_px).any())
+    from ..detection import reaches_past_edge
+
+    return reaches_past_edge(det, width_px, height_px)
 
 
 # ------------------------------------------------------------------------------------------ segmentation

@@ -101,6 +101,12 @@ def detect(image: GeoImage, config: DetectConfig | None = None, class_map: Class
 FRAMED_CATEGORIES = ("boat", "vehicle")  # piers and walkways run on past the edge: they are kept
 
 
+def reaches_past_edge(det: Detection, width_px: int, height_px: int) -> bool:
+    """Whether a box reaches past the image's edge (the object is cut by the picture)."""
+    c = det.corners_px()
+    return bool((c < 0).any() or (c[:, 0] > width_px).any() or (c[:, 1] > height_px).any())
+
+
 def inside_share(det: Detection, width_px: int, height_px: int) -> float:
     """The share of ``det``'s box area inside the image (0 … 1)."""
     from shapely.geometry import Polygon, box
@@ -120,11 +126,9 @@ def drop_cut_by_frame(dets: list[Detection], width_px: int, height_px: int, min_
         return dets
     out = []
     for d in dets:
-        if d.category in FRAMED_CATEGORIES:
-            c = d.corners_px()
-            if ((c < 0).any() or (c[:, 0] > width_px).any() or (c[:, 1] > height_px).any()) and \
-                    inside_share(d, width_px, height_px) < min_inside:
-                continue
+        if d.category in FRAMED_CATEGORIES and reaches_past_edge(d, width_px, height_px) \
+                and inside_share(d, width_px, height_px) < min_inside:
+            continue
         out.append(d)
     return out
 

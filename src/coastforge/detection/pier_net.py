@@ -48,6 +48,10 @@ class PierNet:
             if doc.get("format") != FORMAT:
                 raise InputError(f"{card} has format {doc.get('format')!r}, not {FORMAT!r}: not a pier-deck card")
             self.meta.update({k: doc[k] for k in ("work_gsd_m", "multiple", "max_gsd_m") if k in doc})
+            for k in ("work_gsd_m", "max_gsd_m"):
+                v = self.meta[k]
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+                    raise InputError(f"{card}: {k} is {v!r}; expected a positive number of metres per pixel")
         ort = require("onnxruntime", "onnx", "the pier-deck network")
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = 2
