@@ -479,7 +479,8 @@ _POSITIVE = frozenset({  # divisors, sizes and scales: 0 would divide by zero or
 })
 
 _FRACTIONS = frozenset({  # scores, thresholds, IoUs, fractions and blend weights: [0, 1]
-    "io.gsd_tolerance", "detect.hybrid_support", "detect.row_context", "detect.min_score", "detect.nms_iou", "detect.vehicle_max_wet",
+    "io.gsd_tolerance", "detect.hybrid_support", "detect.row_context", "detect.min_score", "detect.min_inside",
+    "detect.nms_iou", "detect.vehicle_max_wet",
     "detect.boat_core_headroom", "detect.vehicle_ground_frac", "match.sample_margin",
     "match.shape_offset_weight_fine", "match.shape_offset_weight_coarse",
 })
