@@ -321,6 +321,18 @@ def detect_classical(cfg: Config, w: World):
     return ClassicalDetector(cfg.detect).detect(w.image, None, 0)
 
 
+def detect_curved_pier(cfg: Config, w: World):
+    """The classical backend on a walkway bent through a half circle, the pier-deck network stood in for."""
+    from pier_scenes import StandNet, curved_pier_scene
+
+    from coastforge.detection.classical import ClassicalDetector
+
+    image, deck = curved_pier_scene()
+    det = ClassicalDetector(cfg.detect)
+    det.pier_net = lambda: StandNet(deck)  # type: ignore[method-assign]
+    return det.detect(image, None, 0)
+
+
 def detect_run(cfg: Config, w: World):
     """``detect`` as generate calls it: the configured backend, refinement, the class map's reconciliation."""
     from coastforge.detection import detect
@@ -605,6 +617,7 @@ PROBES: dict[str, Probe] = {
     "detect.snap_radius_m": _p(detect_classical, 0.0),
     "detect.pier_gsd_m": _p(detect_classical, 1.0),
     "detect.pier_net": _p(detect_classical, False),
+    "detect.deck_spines": _p(detect_curved_pier, False),
     "detect.walkway_min_m": _p(detect_classical, 40.0),
     "detect.walkway_max_width_m": _p(detect_classical, 1.0),
     "detect.finger_min_m": _p(detect_classical, 15.0),

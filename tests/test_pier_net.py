@@ -4,6 +4,7 @@ model built here), and the classical detector finding a deck the colour threshol
 from __future__ import annotations
 
 import json
+import cv2
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from coastforge.config import DetectConfig
 from coastforge.detection.classical import ClassicalDetector
 from coastforge.detection.pier_net import FORMAT, PierNet
 from coastforge.errors import InputError
+from pier_scenes import StandNet
 from coastforge.types import GeoImage, Grid
 
 
@@ -114,24 +116,10 @@ def test_the_classical_detector_finds_a_deck_only_the_network_sees(monkeypatch):
     assert not piers(ClassicalDetector(DetectConfig(pier_net=False, vehicles=False)).detect(image))
 
     det = ClassicalDetector(DetectConfig(pier_net=True, vehicles=False))
-    monkeypatch.setattr(det, "pier_net", lambda: _Stand(deck))
+    monkeypatch.setattr(det, "pier_net", lambda: StandNet(deck))
     found = piers(det.detect(image))
     walk = [d for d in found if d.category == "pier_walkway"]
     assert walk and max(d.length_px for d in walk) * 0.2 > 30
-
-
-class _Stand:
-    """The network, stood in for by a known deck mask (probability 1 on it, 0 elsewhere)."""
-
-    max_gsd_m = 0.4
-
-    def __init__(self, deck):
-        self.deck = deck
-
-    def probability(self, rgb, gsd_m, shape):
-        import cv2
-
-        return cv2.resize(self.deck.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST)
 
 
 def test_a_boat_moored_alongside_no_longer_cuts_the_walkway(monkeypatch):
@@ -148,7 +136,7 @@ def test_a_boat_moored_alongside_no_longer_cuts_the_walkway(monkeypatch):
     walks = lambda dets: [d for d in dets if d.category == "pier_walkway"]  # noqa: E731
     assert not walks(ClassicalDetector(DetectConfig(pier_net=False, vehicles=False)).detect(image))
     det = ClassicalDetector(DetectConfig(pier_net=True, vehicles=False))
-    monkeypatch.setattr(det, "pier_net", lambda: _Stand(deck))
+    monkeypatch.setattr(det, "pier_net", lambda: StandNet(deck))
     found = walks(det.detect(image))
     assert found and max(d.length_px for d in found) * 0.2 > 20
 
@@ -192,3 +180,23 @@ def test_a_walkway_crossed_by_many_long_fingers_stays_the_walkway():
     walks = [d for d in dets if d.category == "pier_walkway"]
     assert walks and max(d.length_px for d in walks) * gsd > 50
     assert all(abs(abs(((d.yaw_deg + 90) % 180) - 90)) < 5 for d in walks if d.length_px * gsd > 50)
+
+
+def test_a_curved_walkway_is_chained_from_pieces_along_its_deck(monkeypatch):
+    """The straight line openings find no 18 m run in a walkway bent through a quarter circle; the deck's
+    spine (``detect.deck_spines``) gives it as short straight pieces along the curve."""
+    from pier_scenes import curved_pier_scene
+
+    image, deck = curved_pier_scene()
+
+    def walkway_cover(spines: bool) -> float:
+        det = ClassicalDetector(DetectConfig(pier_net=True, deck_spines=spines, vehicles=False))
+        monkeypatch.setattr(det, "pier_net", lambda: StandNet(deck))
+        drawn = np.zeros(deck.shape, np.uint8)
+        for d in det.detect(image):
+            if d.category == "pier_walkway":
+                cv2.fillPoly(drawn, [np.round(d.corners_px()).astype(np.int32)], 1)
+        return float(drawn[deck].mean())
+
+    assert walkway_cover(False) < 0.3
+    assert walkway_cover(True) > 0.7

@@ -155,6 +155,9 @@ class DetectConfig:
     pier_gsd_m: float = 0.3  # piers are searched on a grid this coarse (speed)
     # classical (and hybrid) piers: the pier-deck network's decks join the structure mask (``detection.pier_net``)
     pier_net: bool = True
+    # ... and pier walkways along the spine of the deck parts the straight line openings left (curved walkways:
+    # ``piers.deck_spines``)
+    deck_spines: bool = True
     walkway_min_m: float = 18.0
     walkway_max_width_m: float = 3.0
     finger_min_m: float = 5.0

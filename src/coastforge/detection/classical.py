@@ -29,7 +29,7 @@ from ..config import DetectConfig
 from ..frames import wrap_half_deg, yaw_from_direction_px
 from ..types import ClassMap, Detection, GeoImage
 from . import heading as hd
-from .piers import add_angles, component_axes, detect_piers, dominant_angles, labels_in
+from .piers import add_angles, component_axes, deck_spines, detect_piers, dominant_angles, labels_in
 
 
 def _resize(a: np.ndarray, shape: tuple[int, int], nearest: bool = False) -> np.ndarray:
@@ -349,6 +349,17 @@ class ClassicalDetector:
                                         walkway_min_m=cfg.walkway_min_m, walkway_max_width_m=cfg.walkway_max_width_m,
                                         finger_min_m=cfg.finger_min_m, finger_max_width_m=cfg.finger_max_width_m,
                                         walk_factor=pf, longest_run=deck is not None)
+        if deck is not None and cfg.deck_spines:
+            # deck the straight openings did not explain (a curved walkway): walkways along its spine
+            k = 2 * max(1, int(round(1.5 / gsd))) + 1
+            covered = cv2.dilate(pier_mask.astype(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
+            spines = deck_spines(deck & ~land, covered, gsd, scale, water=water0,
+                                 walkway_min_m=cfg.walkway_min_m, walkway_max_width_m=cfg.walkway_max_width_m)
+            drawn = pier_mask.astype(np.uint8)
+            for d in spines:
+                cv2.fillPoly(drawn, [np.round(d.corners_px() * scale).astype(np.int32)], 1)
+            pier_mask = drawn.astype(bool)
+            piers = piers + spines
         # boats: bright or coloured cores, grown into the weaker object pixels
         pier_d = cv2.dilate(pier_mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         if cfg.boat_mask == "struct":

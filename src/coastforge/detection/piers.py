@@ -324,3 +324,83 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
             dets += [_rescale(d, scale) for d in segs]
     return dets, walk_union | finger_union
 
+
+
+def deck_spines(deck: np.ndarray, covered: np.ndarray, gsd_m: float, scale: float = 1.0,
+                water: np.ndarray | None = None, walkway_min_m: float = 18.0, walkway_max_width_m: float = 4.0,
+                piece_m: float = 8.0) -> list[Detection]:
+    """Walkways the straight line openings missed, along the spine of each deck part left over.
+
+    ``deck`` (the pier-deck network's decks) and ``covered`` (the pier boxes already found) are masks at
+    ``gsd_m``; ``scale`` converts mask pixels to image pixels. For every deck part outside ``covered`` long
+    enough for a walkway, the longest path through its skeleton (the walkway; fingers are its shorter
+    branches) is cut into pieces of about ``piece_m`` and each piece becomes a box along its own chord: a
+    curved walkway is chained from short straight segments, as the pier stage chains any walkway."""
+    import cv2
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+    from skimage.morphology import skeletonize
+
+    left = deck & ~covered
+    n, lbl, st, _ = cv2.connectedComponentsWithStats(left.astype(np.uint8), connectivity=8)
+    min_px = walkway_min_m / gsd_m
+    dist = cv2.distanceTransform(left.astype(np.uint8), cv2.DIST_L2, 3)
+    out: list[Detection] = []
+    for k in range(1, n):
+        if np.hypot(st[k, cv2.CC_STAT_WIDTH], st[k, cv2.CC_STAT_HEIGHT]) < min_px:
+            continue
+        x0, y0, w, h = st[k, :4]
+        part = lbl[y0:y0 + h, x0:x0 + w] == k
+        ys, xs = np.nonzero(skeletonize(part))
+        if len(ys) < min_px:
+            continue
+        # the skeleton as a graph of 8-connected pixels; its longest path runs between the two ends found by
+        # two breadth-first searches (exact on a tree, close enough on a skeleton's few small loops)
+        index = -np.ones(part.shape, np.int64)
+        index[ys, xs] = np.arange(len(ys))
+        src, dst = [], []
+        for dy, dx in ((0, 1), (1, -1), (1, 0), (1, 1)):
+            yy, xx = ys + dy, xs + dx
+            ok = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
+            j = np.full(len(ys), -1)
+            j[ok] = index[yy[ok], xx[ok]]
+            i = np.flatnonzero(j >= 0)
+            src += [i, j[i]]
+            dst += [j[i], i]
+        a, b = np.concatenate(src), np.concatenate(dst)
+        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(len(ys), len(ys))).tocsr()
+        _nc, comp = connected_components(graph, directed=False)
+        start = int(np.argmax(np.bincount(comp)[comp]))  # a pixel of the largest piece of skeleton
+        order, _ = breadth_first_order(graph, start, directed=False)
+        order, pred = breadth_first_order(graph, int(order[-1]), directed=False)
+        path = [int(order[-1])]
+        while pred[path[-1]] >= 0:
+            path.append(int(pred[path[-1]]))
+        if len(path) < min_px:
+            continue
+        px = np.stack([xs[path] + x0, ys[path] + y0], 1).astype(np.float64)
+        # path length in pixels (diagonal steps count 1.41) and where to cut it
+        step = np.r_[0.0, np.hypot(*np.diff(px, axis=0).T)]
+        along = np.cumsum(step)
+        if along[-1] < min_px:
+            continue
+        pieces = max(1, int(round(along[-1] * gsd_m / piece_m)))
+        edges = np.linspace(0.0, along[-1], pieces + 1)
+        for i in range(pieces):
+            sel = (along >= edges[i]) & (along <= edges[i + 1])
+            p = px[sel]
+            if len(p) < 2:
+                continue
+            width = 2.0 * float(np.median(dist[p[:, 1].astype(int), p[:, 0].astype(int)]))
+            if width * gsd_m > walkway_max_width_m:
+                continue
+            chord = p[-1] - p[0]
+            length = float(np.hypot(*chord)) + width  # the deck runs on half a width past each cut
+            yaw = float(yaw_from_direction_px(chord[0], chord[1]))
+            c = p.mean(0)
+            d = Detection("pier_walkway", 0.6, (c[0] + 0.5) / scale, (c[1] + 0.5) / scale, length / scale,
+                          max(width, 1.0) / scale, yaw)
+            if water is not None and not water_both_sides(water, _rescale(d, 1.0 / scale), gsd_m):
+                continue
+            out.append(d)
+    return out
