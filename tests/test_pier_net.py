@@ -4,16 +4,16 @@ model built here), and the classical detector finding a deck the colour threshol
 from __future__ import annotations
 
 import json
-import cv2
 
+import cv2
 import numpy as np
 import pytest
+from pier_scenes import StandNet
 
 from coastforge.config import DetectConfig
 from coastforge.detection.classical import ClassicalDetector
 from coastforge.detection.pier_net import FORMAT, PierNet
 from coastforge.errors import InputError
-from pier_scenes import StandNet
 from coastforge.types import GeoImage, Grid
 
 

@@ -325,7 +325,6 @@ def detect_piers(structure: np.ndarray, gsd_m: float, scale: float = 1.0, angles
     return dets, walk_union | finger_union
 
 
-
 def deck_spines(deck: np.ndarray, covered: np.ndarray, gsd_m: float, scale: float = 1.0,
                 water: np.ndarray | None = None, walkway_min_m: float = 18.0, walkway_max_width_m: float = 4.0,
                 piece_m: float = 8.0) -> list[Detection]:
@@ -398,9 +397,7 @@ def deck_spines(deck: np.ndarray, covered: np.ndarray, gsd_m: float, scale: floa
             length = float(np.hypot(*chord)) + width  # the deck runs on half a width past each cut
             yaw = float(yaw_from_direction_px(chord[0], chord[1]))
             c = p.mean(0)
-            d = Detection("pier_walkway", 0.6, (c[0] + 0.5) / scale, (c[1] + 0.5) / scale, length / scale,
-                          max(width, 1.0) / scale, yaw)
-            if water is not None and not water_both_sides(water, _rescale(d, 1.0 / scale), gsd_m):
-                continue
-            out.append(d)
+            d = Detection("pier_walkway", 0.6, c[0] + 0.5, c[1] + 0.5, length, max(width, 1.0), yaw)
+            if water is None or water_both_sides(water, d, gsd_m):
+                out.append(_rescale(d, scale))
     return out

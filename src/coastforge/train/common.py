@@ -92,7 +92,9 @@ def data_main(argv: list[str] | None, description: str, default_seeds: str,
                     help="'A:B' (half-open) or a comma list; seeds below 100 are refused")
     ap.add_argument("--minutes", type=float, default=None, help="stop starting new levels after this long")
     if mix_option:
-        ap.add_argument("--mix", choices=("benchmark", "training", "rafted"), default="benchmark",
+        from ..synth.layout import MIXES
+
+        ap.add_argument("--mix", choices=tuple(MIXES), default="benchmark",
                         help="asset types as in the benchmark's levels, or with rare ones shown more often (training), "
                              "and boats tied alongside end to end and rafted (rafted)")
     if looks_option:

@@ -23,12 +23,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..detection.pier_net import DEFAULT_MAX_GSD_M
+from ..detection.pier_net import DEFAULT_MAX_GSD_M, FORMAT
 from ..errors import InputError
 from ..rng import stage_rng, stage_seed
 
 CROP = 160
-FORMAT = "coastforge.pier_net/1"
 WORK_GSD_M = 0.2
 COARSE_GSD_M = (0.3, 1.2)  # the GSDs ``augment(coarse=...)`` imitates
 
