@@ -67,6 +67,22 @@ def test_axis_aligned_real_labels_teach_centres_only():
     assert heat[0, r, c + 2] == pytest.approx(heat[0, r + 2, c], rel=1e-6)  # round, not along the box
 
 
+def test_objects_the_crop_cuts_are_background_as_the_real_labels_have_them():
+    """``train_detector --min-inside``: a boat under 70 % inside the training crop teaches no centre (the real
+    sets leave it to the next picture); one 80 % inside does, and so does a ship longer than half the crop."""
+    from coastforge.train.train_detector import drop_cut_boxes, make_targets
+
+    boxes = np.array([[0, 5.0, 100.0, 40.0, 14.0, 0.0, 1.0],  # x -15 .. 25: 62 % inside
+                      [0, 12.0, 100.0, 40.0, 14.0, 0.0, 1.0],  # x -8 .. 32: 80 % inside
+                      [0, 100.0, 220.0, 40.0, 14.0, 90.0, 1.0],  # y 200 .. 240: 60 % inside, turned
+                      [0, 180.0, 40.0, 160.0, 40.0, 0.0, 1.0]])  # x 100 .. 260: a big ship, 75 % inside
+    kept = drop_cut_boxes(boxes, 224, 0.7)
+    assert kept[:, 1].tolist() == [12.0, 180.0]
+    assert len(drop_cut_boxes(boxes, 224, 0.0)) == 4  # off: every object whose centre is inside
+    heat = make_targets(kept, 224)[0]
+    assert heat[0, 25, 1] < 0.5 and heat[0, 25, 3] == 1.0  # no peak at the cut boat's centre (x 5)
+
+
 def test_unlabelled_classes_are_not_taught_as_background():
     """``ships_aerial`` labels boats only: its parked cars must not teach the vehicle heatmap that cars
     are background, so that class's loss is left out for such images."""
