@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from coastforge import realdata
-from coastforge.bench.real import (coarse_confusion, coarse_scores, cut_by_edge, default_config, det_munich,
-                                   match_centres_in_boxes, match_centres_in_quads, seg_dubai)
+from coastforge.bench.real import (coarse_confusion, coarse_scores, coarser, cut_by_edge, default_config,
+                                   det_gsd_sweep, det_munich, match_centres_in_boxes, match_centres_in_quads,
+                                   seg_dubai)
 from coastforge.classes import ASPHALT, GRASS, ROCKS, SAND, WATER
 
 BOX = np.array([[100.0, 100.0, 140.0, 120.0]])  # 40 x 20, centre (120, 110); grown: x 95..145, y 97.5..122.5
@@ -117,3 +118,34 @@ def test_quick_real_runs():
     assert 0 <= r["matched"] <= min(r["labels"], r["preds"])
     assert 0.0 <= r["recall"] <= 1.0
     assert r["preds"] == 0 or 0.0 <= r["precision"] <= 1.0
+
+
+def test_coarser_averages_the_image_down_and_scales_its_gsd():
+    from coastforge.types import GeoImage, Grid
+
+    rgb = np.zeros((40, 60, 3), np.uint8)
+    rgb[:, 30:] = 200  # a sharp edge between two 2 x 2 blocks stays sharp; blocks are averaged
+    rgb[0, 0] = 40
+    img = GeoImage(rgb, Grid(60, 40, 0.13))
+    small = coarser(img, 2.0)
+    assert small.rgb.shape == (20, 30, 3) and small.grid.gsd_m == pytest.approx(0.26)
+    assert (small.grid.width_px, small.grid.height_px) == (30, 20)
+    assert small.rgb[0, 0, 0] == 10 and small.rgb[5, 14, 0] == 0 and small.rgb[5, 15, 0] == 200
+    assert coarser(img, 1.0) is img
+
+
+@pytest.mark.shared_data
+def test_gsd_sweep_runs_on_one_photo():
+    if not realdata.SHARED.is_dir():
+        pytest.skip(f"../shared/data not found at {realdata.SHARED}: "
+                    "real-imagery tests need it beside the repo")
+    r = det_gsd_sweep(split="train", limit=1, factors=(4.0,))
+    assert "marina_p0861" not in r  # evaluation-only: not measured with the training split
+    rows = r["cars_munich"]["rows"]
+    assert [x["factor"] for x in rows] == [1.0, 4.0]
+    assert rows[1]["gsd_m"] == pytest.approx(4 * realdata.MUNICH_GSD_M, abs=1e-3)
+    assert rows[0]["objects"] == rows[1]["objects"] > 0
+    for x in rows:
+        assert 0 <= x["matched"] <= min(x["objects"], x["preds"])
+    # the same cars seen from 4 times higher (0.52 m/px) are still mostly found
+    assert rows[1]["recall"] >= 0.5 * rows[0]["recall"]
