@@ -86,6 +86,29 @@ def test_covers_go_on_boats_only_and_are_drawn_from_the_seed():
     assert n_boats >= 4 and 0 < k < 2 * n_boats
 
 
+def test_wakes_trail_boats_in_open_water_only():
+    """``detector_data --looks wakes``: foam astern of a boat with open water behind it, none ahead of it; a
+    boat whose wake would cross land (moored by the quay) and a vehicle get none."""
+    import numpy as np
+
+    from coastforge.train.detector_data import add_wakes
+
+    rgb = np.full((200, 300, 3), (30, 70, 90), np.uint8)
+    water = np.ones((200, 300), bool)
+    water[:, 250:] = False  # a quay on the east
+    under_way = [0, 100.0, 60.0, 20.0, 8.0, 0.0]  # heading east: its wake runs west, over water
+    moored = [0, 230.0, 150.0, 20.0, 8.0, 180.0]  # heading west: its wake would run onto the quay
+    car = [1, 280.0, 100.0, 20.0, 8.0, 0.0]
+    out = add_wakes(rgb, [under_way, moored, car], water, common_rng(4), p_boat=1.0)
+    light = out.astype(int).sum(2)
+    base = int(rgb[0, 0].astype(int).sum())
+    assert light[58:63, 60:88].mean() > base + 100  # astern of the stern (x 90): foam
+    assert (light[40:80, 112:250] == base).all()  # ahead of the bow (x 110): untouched
+    assert (light[120:180, 150:300] == base).all()  # the moored boat and the quay: untouched
+    assert (light[:, 250:] == base).all()
+    assert (add_wakes(rgb, [under_way], water, common_rng(4), p_boat=0.0) == rgb).all()
+
+
 def common_rng(seed: int):
     from coastforge.rng import stage_rng
 

@@ -99,9 +99,9 @@ def data_main(argv: list[str] | None, description: str, default_seeds: str,
                              "and boats tied alongside end to end and rafted (rafted)")
     if looks_option:
         ap.add_argument("--library", default=None, help="render with this asset library's assets (default: the kit)")
-        ap.add_argument("--looks", choices=("kit", "varied", "covers"), default="kit",
+        ap.add_argument("--looks", choices=("kit", "varied", "covers", "wakes"), default="kit",
                         help="'varied' repaints about half the boats (dark hulls among them), 'covers' puts "
-                             "about half under canvas covers")
+                             "about half under canvas covers, 'wakes' repaints and draws foam wakes astern")
     a = ap.parse_args(argv)
     kw = {"mix": a.mix} if mix_option else {}
     if looks_option:

@@ -10,7 +10,9 @@ draws the rare asset types more often (``synth.layout.TRAINING_MIX``: buses and 
 dinghies, kayaks, rowboats, centre consoles); the default draws them as the benchmark's levels do.
 ``--library LIB`` renders the levels with another asset library's boats and cars (e.g. a training split of
 the CC0 models in ../shared/data/models), ``--looks varied`` repaints about half the boats (dark hulls
-among them), ``--looks covers`` puts about half of them under canvas covers: looks the kit does not have.
+among them), ``--looks covers`` puts about half of them under canvas covers, ``--looks wakes`` repaints as
+``varied`` and draws a foam wake behind about half the boats with open water astern (boats under way, as
+real photos of open water show them): looks the kit does not have.
 """
 
 from __future__ import annotations
@@ -83,6 +85,50 @@ def vary_covers(level, rng: np.random.Generator, p_boat: float = 0.5):
     return _restyle_boats(level, rng, p_boat, "cover", attrs_of)
 
 
+WAKE_P = 0.5  # share of the boats with open water astern that get a wake (``add_wakes``)
+
+
+def add_wakes(rgb: np.ndarray, boxes: list[list[float]], water: np.ndarray, rng: np.random.Generator,
+              p_boat: float = WAKE_P) -> np.ndarray:
+    """``rgb`` with a foam wake behind about ``p_boat`` of the boats (``boxes`` in its pixels, class 0) whose
+    wake would lie on ``water`` (bool, same shape) where it is inside the image: a turbulent white band from
+    the stern, 3-20 hull lengths long, widening and fading with distance, and two faint arms diverging from it. Real photos of open
+    water show boats under way at the head of such trails; the kit's renders have none. For training only."""
+    h, w = water.shape
+    out = rgb.astype(np.float32)
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    for c, cx, cy, length, width, yaw in boxes:
+        if int(c) != 0 or rng.random() >= p_boat:
+            continue
+        t = np.deg2rad(yaw)
+        f = np.array([np.cos(t), -np.sin(t)])  # the front, in (col, row)
+        n_len = float(rng.uniform(3.0, 20.0))
+        trail = n_len * length
+        stern = np.array([cx, cy]) - f * length / 2.0
+        end = stern - f * trail  # may lie beyond the image: real wakes leave the picture too
+        span = max(width, 2.0) * (1.0 + 0.6 * n_len)
+        x0, x1 = int(max(0, min(stern[0], end[0]) - span)), int(min(w, max(stern[0], end[0]) + span + 1))
+        y0, y1 = int(max(0, min(stern[1], end[1]) - span)), int(min(h, max(stern[1], end[1]) + span + 1))
+        dx, dy = xx[y0:y1, x0:x1] - stern[0], yy[y0:y1, x0:x1] - stern[1]
+        back = -(dx * f[0] + dy * f[1])  # distance astern
+        side = np.abs(-dx * f[1] + dy * f[0])
+        on = (back >= 0) & (back <= trail)
+        if water[y0:y1, x0:x1][on].mean() < 0.95 if on.any() else True:
+            continue  # the trail would cross land, a pier or another boat: this boat is moored
+        u = np.clip(back / trail, 0.0, 1.0)
+        half = 0.5 * width * (0.8 + 2.5 * u)  # the turbulent band widens astern
+        band = np.exp(-(side / np.maximum(half, 0.5)) ** 2) * (1.0 - u) ** 1.5
+        arm_off = back * np.tan(np.deg2rad(rng.uniform(8.0, 19.0)))
+        arms = np.exp(-((side - arm_off) / max(1.0, 0.4 * width)) ** 2) * (1.0 - u) ** 2 * 0.45
+        grain = rng.uniform(0.55, 1.0, band.shape).astype(np.float32)
+        a = np.clip((np.maximum(band, arms) * grain) * float(rng.uniform(0.5, 0.9)), 0.0, 1.0)
+        a *= on & water[y0:y1, x0:x1]
+        foam = np.array([rng.uniform(200, 240)] * 3, np.float32) + rng.uniform(-8, 8, 3).astype(np.float32)
+        blk = out[y0:y1, x0:x1]
+        out[y0:y1, x0:x1] = blk * (1.0 - a[..., None]) + foam * a[..., None]
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
 def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
                  work_gsd_m: float = WORK_GSD_M, mix: str = "benchmark", library: str | Path | None = None,
                  looks: str = "kit") -> tuple[np.ndarray, list[list[float]]]:
@@ -91,7 +137,8 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
     ``mix="training"`` draws the rare asset types more often (``synth.layout.TRAINING_MIX``), ``mix="rafted"``
     also ties boats alongside walkways end to end and rafts some two deep (``RAFTED_MIX``); ``library``
     fills the layout's roles with that library's assets (other looks than the kit's); ``looks="varied"``
-    repaints about half the boats (``vary_looks``), ``looks="covers"`` covers about half (``vary_covers``)."""
+    repaints about half the boats (``vary_looks``), ``looks="covers"`` covers about half (``vary_covers``),
+    ``looks="wakes"`` repaints as ``varied`` and draws wakes (``add_wakes``)."""
     from .. import frames
     from ..rng import stage_rng
     from ..synth import synthesize_level
@@ -100,7 +147,7 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
 
     level = synthesize_level(preset, seed, size_m=size_m, library=library,
                              mix=MIXES[mix])
-    if looks == "varied":
+    if looks in ("varied", "wakes"):
         level = vary_looks(level, stage_rng(seed, "train", "detector_data", "looks"))
     elif looks == "covers":
         level = vary_covers(level, stage_rng(seed, "train", "detector_data", "covers"))
@@ -120,6 +167,16 @@ def level_sample(preset: str, seed: int, gsd_m: float, size_m: float | None,
             length, width, yaw = width, length, yaw + 90.0
         boxes.append([CLASSES.index(o.category), float(col), float(row), float(length), float(width),
                       float(frames.wrap_deg(yaw))])
+    if looks == "wakes" and level.scene.classes is not None:
+        from ..classes import WATER
+
+        water = cv2.resize((level.scene.classes == WATER).astype(np.uint8), (w, h),
+                           interpolation=cv2.INTER_NEAREST)
+        for o in level.scene.objects:  # piers, moored boats and buoys are no open water either
+            pts = [frames.scene_to_pixel(x, y, w, h, g) for x, y in o.footprint_m(grow_m=1.0)]
+            cv2.fillPoly(water, [np.round(np.array(pts, np.float64)).astype(np.int32)], 0)
+        water = water > 0
+        work = add_wakes(work, boxes, water, stage_rng(seed, "train", "detector_data", "wakes"))
     return work, boxes
 
 
