@@ -83,6 +83,21 @@ def test_objects_the_crop_cuts_are_background_as_the_real_labels_have_them():
     assert heat[0, 25, 1] < 0.5 and heat[0, 25, 3] == 1.0  # no peak at the cut boat's centre (x 5)
 
 
+def test_coarse_source_softens_a_crop_as_a_coarser_photo_would():
+    """``train_detector --coarse-p``: a crop brought down 1.5-5 times and back up keeps its size and mean but
+    loses its sharp edges (a one-pixel line is spread out), differently for each draw."""
+    from coastforge.train.train_detector import coarse_source
+
+    img = np.full((64, 64, 3), 40, np.uint8)
+    img[:, 32] = 240  # a one-pixel white line, as a pier's edge or a hull's rim at 0.2 m/px
+    a = coarse_source(img, np.random.default_rng(0))
+    b = coarse_source(img, np.random.default_rng(1))
+    assert a.shape == img.shape and a.dtype == np.uint8
+    assert abs(float(a.mean()) - float(img.mean())) < 6.0
+    assert a[:, 32].mean() < 200 and a[:, 31].mean() > 45  # the line spread over its neighbours
+    assert not np.array_equal(a, b)
+
+
 def test_unlabelled_classes_are_not_taught_as_background():
     """``ships_aerial`` labels boats only: its parked cars must not teach the vehicle heatmap that cars
     are background, so that class's loss is left out for such images."""

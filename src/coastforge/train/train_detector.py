@@ -115,6 +115,24 @@ def recolour_objects(img: np.ndarray, boxes: np.ndarray, rng: np.random.Generato
     return cv2.cvtColor(out, cv2.COLOR_HSV2RGB)
 
 
+COARSE_SOURCE_FACTORS = (1.5, 5.0)  # ``coarse_source``: how many times coarser the simulated source image is
+
+
+def coarse_source(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``img`` as if it came from an image 1.5-5 times coarser (0.3-1 m/px for a 0.2 m/px crop), brought to
+    the working GSD as the detector brings one: averaged down, sometimes JPEG-compressed at that size, and
+    interpolated back up. The renders are made at 0.08-0.3 m/px, so without this the network never sees the
+    soft, blocky boats of a 1 m/px photo."""
+    h, w = img.shape[:2]
+    k = float(rng.uniform(*COARSE_SOURCE_FACTORS))
+    small = cv2.resize(img, (max(2, int(round(w / k))), max(2, int(round(h / k)))), interpolation=cv2.INTER_AREA)
+    if rng.random() < 0.5:
+        ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(40, 90))])
+        if ok:
+            small = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
 def photometric(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Colour, hue, blur, noise and JPEG randomisation (uint8 RGB in, uint8 out)."""
     x = img.astype(np.float32)
@@ -196,12 +214,14 @@ class Sampler:
     """Random augmented crops from the generated levels (re-reads the index as more levels appear)."""
 
     def __init__(self, data_dirs: Path | list[Path], crop: int, rng: np.random.Generator,
-                 shares: list[float] | None = None, min_inside: float = 0.0):
+                 shares: list[float] | None = None, min_inside: float = 0.0, coarse_p: float = 0.0):
         """``data_dirs``: one folder of ``detector_data`` (or ``detector_real``) levels or several (their
         levels in that order); ``shares``: the share of crops drawn from each folder (default: by its
         number of images); ``min_inside``: objects the crop cuts below this share are background
-        (``drop_cut_boxes``; 0 keeps every object whose centre is inside)."""
+        (``drop_cut_boxes``; 0 keeps every object whose centre is inside); ``coarse_p``: the share of crops
+        seen as from a coarser image (``coarse_source``)."""
         self.min_inside = float(min_inside)
+        self.coarse_p = float(coarse_p)
         self.dirs = [Path(d) for d in (data_dirs if isinstance(data_dirs, (list, tuple)) else [data_dirs])]
         if shares is not None and (len(shares) != len(self.dirs) or min(shares) < 0 or sum(shares) <= 0):
             raise InputError(f"--share needs one non-negative share per --data folder, got {shares}")
@@ -272,6 +292,10 @@ class Sampler:
                 bx[:, 5] = (180.0 - bx[:, 5] + 180.0) % 360.0 - 180.0
         if len(bx) and rng.random() < OBJECT_RECOLOUR_P:
             crop = recolour_objects(crop, bx, rng)
+        # rendered crops only (real photos have their own GSD, up to 1.2 m/px); no draw when off, so that
+        # earlier runs re-run alike
+        if self.coarse_p > 0 and "seed" in it and rng.random() < self.coarse_p:
+            crop = coarse_source(crop, rng)
         return photometric(crop, rng), drop_cut_boxes(bx, C, self.min_inside), labelled
 
 
@@ -357,7 +381,7 @@ def init_from_onnx(torch, net, onnx_path: Path, sampler: Sampler, batches: int =
 def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path | list | None = None,
           steps: int | None = None, batch: int = 16, crop: int = 160, lr: float = 2e-3, width: int = 16,
           threads: int = 1, data_minutes: float = 10.0, init: str | Path | None = None,
-          shares: list[float] | None = None, min_inside: float = 0.0) -> dict:
+          shares: list[float] | None = None, min_inside: float = 0.0, coarse_p: float = 0.0) -> dict:
     from ..registry import require
 
     torch = require("torch", "train", "training the learned detector")
@@ -370,7 +394,7 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
 
         data_dir = out / "data"
         generate(data_dir, list(range(100 + seed * 1000, 100 + seed * 1000 + 1000)), minutes=data_minutes)
-    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"), shares, min_inside)
+    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"), shares, min_inside, coarse_p)
     net = build_model(width)
     previous = None
     if init is not None:  # continue an earlier run (its settings are kept in the record)
@@ -449,7 +473,8 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
         "outputs": {"heat": "sigmoid centre heatmaps", "peaks": "heat at 3x3 local maxima, else 0",
                     "reg": "offset(2) log(len/4) log(wid/4) cos2t sin2t cos t sin t"},
         "training": {"seed": seed, "minutes": minutes, "steps": step, "batch": batch, "crop_px": crop,
-                     "lr": lr, "width": width, "threads": threads, "min_inside": min_inside, "data": ", ".join(map(str, sampler.dirs)),
+                     "lr": lr, "width": width, "threads": threads, "min_inside": min_inside, "coarse_p": coarse_p,
+                     "data": ", ".join(map(str, sampler.dirs)),
                      "levels": len(synth), "real_images": len(sampler.items) - len(synth), "shares": shares,
                      "presets": sorted({it["preset"] for it in synth}),
                      "seeds": [min(it["seed"] for it in synth), max(it["seed"] for it in synth)] if synth else None,
@@ -483,11 +508,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--min-inside", type=float, default=0.0,
                     help="objects the crop cuts below this share of their area are background (0: none; "
                          "tried at 0.7, not shipped: docs/benchmarks.md)")
+    ap.add_argument("--coarse-p", type=float, default=0.0,
+                    help="share of crops seen as from a 1.5-5 times coarser image (default 0)")
     a = ap.parse_args(argv)
+    if not 0.0 <= a.coarse_p <= 1.0:
+        raise SystemExit(f"--coarse-p must lie in [0, 1], got {a.coarse_p}")
     if not 0.0 <= a.min_inside < 1.0:
         raise SystemExit(f"--min-inside must lie in [0, 1), got {a.min_inside}")
     train(a.out, a.seed, a.minutes, a.data, a.steps, a.batch, a.crop, lr=a.lr, threads=a.threads, init=a.init,
-          shares=a.share, min_inside=a.min_inside)
+          shares=a.share, min_inside=a.min_inside, coarse_p=a.coarse_p)
 
 
 if __name__ == "__main__":
