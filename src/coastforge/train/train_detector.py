@@ -509,7 +509,8 @@ def main(argv: list[str] | None = None) -> None:
                     help="objects the crop cuts below this share of their area are background (0: none; "
                          "tried at 0.7, not shipped: docs/benchmarks.md)")
     ap.add_argument("--coarse-p", type=float, default=0.0,
-                    help="share of crops seen as from a 1.5-5 times coarser image (default 0)")
+                    help="share of rendered crops seen as from a 1.5-5 times coarser image (default 0; tried at "
+                         "0.3, not shipped: docs/benchmarks.md)")
     a = ap.parse_args(argv)
     if not 0.0 <= a.coarse_p <= 1.0:
         raise SystemExit(f"--coarse-p must lie in [0, 1], got {a.coarse_p}")
