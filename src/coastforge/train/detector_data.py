@@ -92,11 +92,11 @@ def add_wakes(rgb: np.ndarray, boxes: list[list[float]], water: np.ndarray, rng:
               p_boat: float = WAKE_P) -> np.ndarray:
     """``rgb`` with a foam wake behind about ``p_boat`` of the boats (``boxes`` in its pixels, class 0) whose
     wake would lie on ``water`` (bool, same shape) where it is inside the image: a turbulent white band from
-    the stern, 3-20 hull lengths long, widening and fading with distance, and two faint arms diverging from it. Real photos of open
-    water show boats under way at the head of such trails; the kit's renders have none. For training only."""
+    the stern, 3-20 hull lengths long, widening and fading with distance, and two faint arms diverging from
+    it. Real photos of open water show boats under way at the head of such trails; the kit's renders have
+    none. For training only."""
     h, w = water.shape
     out = rgb.astype(np.float32)
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
     for c, cx, cy, length, width, yaw in boxes:
         if int(c) != 0 or rng.random() >= p_boat:
             continue
@@ -109,11 +109,13 @@ def add_wakes(rgb: np.ndarray, boxes: list[list[float]], water: np.ndarray, rng:
         span = max(width, 2.0) * (1.0 + 0.6 * n_len)
         x0, x1 = int(max(0, min(stern[0], end[0]) - span)), int(min(w, max(stern[0], end[0]) + span + 1))
         y0, y1 = int(max(0, min(stern[1], end[1]) - span)), int(min(h, max(stern[1], end[1]) + span + 1))
-        dx, dy = xx[y0:y1, x0:x1] - stern[0], yy[y0:y1, x0:x1] - stern[1]
+        yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float32)
+        dx, dy = xx - stern[0], yy - stern[1]
         back = -(dx * f[0] + dy * f[1])  # distance astern
         side = np.abs(-dx * f[1] + dy * f[0])
         on = (back >= 0) & (back <= trail)
-        if water[y0:y1, x0:x1][on].mean() < 0.95 if on.any() else True:
+        wet = water[y0:y1, x0:x1]
+        if not on.any() or wet[on].mean() < 0.95:
             continue  # the trail would cross land, a pier or another boat: this boat is moored
         u = np.clip(back / trail, 0.0, 1.0)
         half = 0.5 * width * (0.8 + 2.5 * u)  # the turbulent band widens astern
@@ -122,7 +124,7 @@ def add_wakes(rgb: np.ndarray, boxes: list[list[float]], water: np.ndarray, rng:
         arms = np.exp(-((side - arm_off) / max(1.0, 0.4 * width)) ** 2) * (1.0 - u) ** 2 * 0.45
         grain = rng.uniform(0.55, 1.0, band.shape).astype(np.float32)
         a = np.clip((np.maximum(band, arms) * grain) * float(rng.uniform(0.5, 0.9)), 0.0, 1.0)
-        a *= on & water[y0:y1, x0:x1]
+        a *= on & wet
         foam = np.array([rng.uniform(200, 240)] * 3, np.float32) + rng.uniform(-8, 8, 3).astype(np.float32)
         blk = out[y0:y1, x0:x1]
         out[y0:y1, x0:x1] = blk * (1.0 - a[..., None]) + foam * a[..., None]
