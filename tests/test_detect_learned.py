@@ -98,6 +98,56 @@ def test_coarse_source_softens_a_crop_as_a_coarser_photo_would():
     assert not np.array_equal(a, b)
 
 
+def test_a_flat_margin_keeps_objects_the_picture_cuts_whole():
+    """``train_detector --blank-p``: a strip along one side of the crop is painted flat; a boat still 30 % or
+    more visible keeps its whole box (centre under the strip, a peak there), one hidden more goes; the rest
+    of the crop is untouched."""
+    from coastforge.train.train_detector import blank_margin, make_targets
+
+    img = np.random.default_rng(3).integers(0, 255, (224, 224, 3), dtype=np.uint8)
+    boxes = np.array([[0, 20.0, 100.0, 60.0, 14.0, 0.0, 1.0],  # x -10 .. 50
+                      [0, 8.0, 160.0, 30.0, 10.0, 0.0, 1.0],  # x -7 .. 23
+                      [0, 150.0, 150.0, 40.0, 14.0, 30.0, 1.0]])  # far from the strip
+    for seed in range(40):  # find a draw that blanks the left side
+        out, kept = blank_margin(img, boxes, np.random.default_rng(seed))
+        flat = (out[:, :1] == out[0, 0]).all()
+        if flat and not (out[:, -1:] == out[0, -1]).all():
+            break
+    width = int(np.argmax(~(out == out[0, 0]).all(axis=(0, 2))))  # first column not flat
+    assert 0.08 * 224 - 1 <= width <= 0.3 * 224 + 1
+    assert np.array_equal(out[:, width + 1:], img[:, width + 1:])
+    visible = [(b[1] + b[3] / 2 - width) / b[3] for b in boxes[:2]]
+    expect = [b[1] for b, v in zip(boxes[:2], visible) if v >= 0.3] + [150.0]
+    assert kept[:, 1].tolist() == expect and kept[:, 3].tolist() == [b[3] for b in boxes if b[1] in expect]
+    if 20.0 in expect and width > 20:  # the centre lies under the strip and still teaches a peak
+        assert make_targets(kept, 224)[0][0, 25, 5] == 1.0
+
+
+def test_an_edge_margin_places_a_cut_object_in_the_pictures_frame(monkeypatch):
+    """A card's ``edge_margin_px`` pads the picture with flat colour before the network runs; boxes come
+    back in the picture's pixels, and one centred in the margin (under half inside) is left out."""
+    det = LearnedDetector(DetectConfig(flip_tta=False, axis_tta=False, refine=False, row_context=0.0))
+    det.meta = {**det.meta, "edge_margin_px": 32}
+    seen = []
+
+    def fake_session_run(names, feeds):
+        x = feeds["image"]
+        seen.append(x.shape)
+        n = x.shape[2] // 4, x.shape[3] // 4
+        peaks, reg = np.zeros((1, 3, *n), np.float32), np.zeros((1, 8, *n), np.float32)
+        for i, j in ((10, 12), (10, 4)):  # (4, 12) in the padded frame: x 16 + 32 - 32 px; (4, 4) in the margin
+            peaks[0, 0, i, j] = 0.9
+            reg[0, :, i, j] = [0.5, 0.5, math.log(40 / 4), math.log(12 / 4), 1, 0, 1, 0]
+        return [peaks, reg]
+
+    monkeypatch.setattr(det.session, "run", fake_session_run)
+    image = GeoImage(np.full((96, 128, 3), 90, np.uint8), Grid(128, 96, det.meta["work_gsd_m"]))
+    out = det.detect(image)
+    assert seen and seen[0][2:] == (96 + 64, 128 + 64)
+    assert len(out) == 1
+    assert (out[0].cx_px, out[0].cy_px) == pytest.approx((12 * 4 + 2 - 32, 10 * 4 + 2 - 32))
+
+
 def test_unlabelled_classes_are_not_taught_as_background():
     """``ships_aerial`` labels boats only: its parked cars must not teach the vehicle heatmap that cars
     are background, so that class's loss is left out for such images."""
@@ -384,7 +434,7 @@ def test_row_context_raises_a_weak_boat_in_a_gap_of_a_moored_row(monkeypatch):
 
     def found(boost):
         det = LearnedDetector(DetectConfig(axis_tta=False, row_context=boost))
-        monkeypatch.setattr(det, "run", lambda work, threshold=None: rows[rows[:, 1] >= threshold])
+        monkeypatch.setattr(det, "run", lambda work, threshold=None, margin=0: rows[rows[:, 1] >= threshold])
         return sorted((round(d.cx_px), round(d.cy_px)) for d in det.detect(img, None, 0))
 
     assert found(0.0) == [(100, 100), (100, 116), (100, 148)]

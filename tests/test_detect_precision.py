@@ -110,7 +110,7 @@ def test_learned_duplicate_car_boxes_are_merged(monkeypatch):
         [1, 0.55, 100.0, 106.0, 23.0, 9.0, 3.0, 0.9],
         [1, 0.75, 100.0, 87.0, 23.0, 9.0, 0.0, 0.9],
     ])
-    monkeypatch.setattr(det, "run", lambda work, threshold=None: rows.copy())
+    monkeypatch.setattr(det, "run", lambda work, threshold=None, margin=0: rows.copy())
     img = GeoImage(rgb=np.zeros((200, 200, 3), np.uint8), grid=Grid(200, 200, 0.2))
     out = det.detect(img)
     assert sorted(round(d.score, 2) for d in out) == [0.75, 0.8]

@@ -28,7 +28,10 @@ from ..types import ClassMap, Detection, GeoImage
 from .nms import rotated_nms
 
 DEFAULT_META = {"classes": ["boat", "vehicle", "buoy"], "work_gsd_m": 0.2, "stride": 4, "thresholds": {},
-                "thresholds_single_pass": {}}
+                "thresholds_single_pass": {}, "edge_margin_px": 0}
+# the flat colour of the margin a card's ``edge_margin_px`` adds around the picture (its network was trained
+# with margins of random flat colours: ``train_detector --blank-p``)
+EDGE_FILL = (128, 128, 128)
 TILE_PX = 768  # tile size at the working GSD
 TILE_OVERLAP_PX = 128  # > most objects' length (25 m boats); larger ones are merged by NMS
 HEADING_KNOWN_CONF = 0.6  # |front · axis| >= 0.2
@@ -149,13 +152,17 @@ class LearnedDetector:
         """Whether a box passes its class's threshold (``detect(..., floor=...)`` also gives weaker ones)."""
         return det.score >= self.class_threshold.get(det.category, self.threshold)
 
-    def run(self, work: np.ndarray, threshold: float | None = None) -> np.ndarray:
+    def run(self, work: np.ndarray, threshold: float | None = None, margin: int = 0) -> np.ndarray:
         """Decoded rows (see ``decode``) for one uint8 RGB image at the working GSD (tiled), down to
-        ``threshold`` (default: the lowest class threshold)."""
+        ``threshold`` (default: the lowest class threshold). ``margin``: pixels of flat colour added around
+        the image first, so that the network can place an object the picture cuts whole, its centre perhaps
+        outside (only for a network trained so: the card's ``edge_margin_px``)."""
         import cv2
 
         from .yolo import slice_windows
 
+        if margin > 0:
+            work = cv2.copyMakeBorder(work, margin, margin, margin, margin, cv2.BORDER_CONSTANT, value=EDGE_FILL)
         h, w = work.shape[:2]
         stride = int(self.meta["stride"])
         rows = []
@@ -176,7 +183,10 @@ class LearnedDetector:
             d[:, 2] += c0
             d[:, 3] += r0
             rows.append(d)
-        return np.concatenate(rows, 0) if rows else np.zeros((0, 8))
+        out = np.concatenate(rows, 0) if rows else np.zeros((0, 8))
+        if margin > 0:
+            out[:, 2:4] -= margin
+        return out
 
     def _run_flipped(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Peaks and box maps of one tile (1, 3, H, W) as the mean of the network's pass on it and on its
@@ -225,7 +235,8 @@ class LearnedDetector:
         boost = max(0.0, float(cfg.row_context))
         reach = boost * ROW_MAX_NEIGHBOURS  # a candidate this far below its threshold may still reach it
         lowest = self.threshold - reach if floor is None else min(float(floor), self.threshold - reach)
-        rows = self.run(work, max(1e-3, lowest))
+        margin = int(self.meta.get("edge_margin_px") or 0)
+        rows = self.run(work, max(1e-3, lowest), margin)
         for c, score, cx, cy, length, width, yaw, conf in rows:
             cat = classes[int(c)]
             thr = self.class_threshold[cat]
@@ -234,6 +245,8 @@ class LearnedDetector:
                 continue
             lo, hi = limits.get(cat, (0.0, math.inf))
             if not (lo <= length * work_gsd <= hi):
+                continue
+            if margin and not (0.0 <= cx <= nw and 0.0 <= cy <= nh):  # centred in the margin: under half inside
                 continue
             scale = 0.5 * (sx + sy)
             known = cat != "buoy" and conf >= HEADING_KNOWN_CONF

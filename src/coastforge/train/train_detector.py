@@ -90,6 +90,51 @@ def drop_cut_boxes(boxes: np.ndarray, size: int, min_inside: float) -> np.ndarra
     return boxes[keep]
 
 
+# a flat margin along one side of a crop (``blank_margin``): its width as a share of the crop, and the least
+# share of an object's box that must stay visible for it to remain an object to find
+BLANK_WIDTH = (0.08, 0.3)
+BLANK_MIN_VISIBLE = 0.3
+
+
+def blank_margin(img: np.ndarray, boxes: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``img`` with a strip along one side painted one flat colour, as the detector pads a picture's edges
+    (``detect`` with a card's ``edge_margin_px``), and the boxes it leaves: an object still at least
+    ``BLANK_MIN_VISIBLE`` visible keeps its whole box, its centre perhaps under the strip; one hidden more
+    is no object. So the network learns to draw a boat the frame cuts whole, past the edge, and the edge
+    rule (``detection.drop_cut_by_frame``) can judge how much of it the picture holds; before, it only
+    saw cut objects end where the picture ended."""
+    size = img.shape[0]
+    width = int(round(rng.uniform(*BLANK_WIDTH) * size))
+    side = int(rng.integers(4))
+    out = img.copy()
+    fill = rng.uniform(20, 200, 3).astype(np.uint8)
+    visible = np.array([[0, 0], [size, 0], [size, size], [0, size]], np.float32)
+    if side == 0:
+        out[:, :width] = fill
+        visible[[0, 3], 0] = width
+    elif side == 1:
+        out[:, size - width:] = fill
+        visible[[1, 2], 0] = size - width
+    elif side == 2:
+        out[:width] = fill
+        visible[[0, 1], 1] = width
+    else:
+        out[size - width:] = fill
+        visible[[2, 3], 1] = size - width
+    if not len(boxes):
+        return out, boxes
+    from ..frames import box_corners_px
+
+    keep = np.ones(len(boxes), bool)
+    for k, (_, cx, cy, L, W, yaw) in enumerate(boxes[:, :6]):
+        if L * W <= 0:
+            continue
+        corners = box_corners_px(cx, cy, L, W, yaw).astype(np.float32)
+        seen, _ = cv2.intersectConvexConvex(corners, visible)
+        keep[k] = seen >= BLANK_MIN_VISIBLE * L * W
+    return out, boxes[keep]
+
+
 def recolour_objects(img: np.ndarray, boxes: np.ndarray, rng: np.random.Generator, shrink: float = 0.85) -> np.ndarray:
     """Each oriented (rendered) object of the crop gets, with probability 0.6, its own hue turn, saturation
     and brightness inside its box (shrunk so that little of the water around it changes): hulls and car
@@ -214,13 +259,16 @@ class Sampler:
     """Random augmented crops from the generated levels (re-reads the index as more levels appear)."""
 
     def __init__(self, data_dirs: Path | list[Path], crop: int, rng: np.random.Generator,
-                 shares: list[float] | None = None, min_inside: float = 0.0, coarse_p: float = 0.0):
+                 shares: list[float] | None = None, min_inside: float = 0.0, coarse_p: float = 0.0,
+                 blank_p: float = 0.0):
         """``data_dirs``: one folder of ``detector_data`` (or ``detector_real``) levels or several (their
         levels in that order); ``shares``: the share of crops drawn from each folder (default: by its
         number of images); ``min_inside``: objects the crop cuts below this share are background
         (``drop_cut_boxes``; 0 keeps every object whose centre is inside); ``coarse_p``: the share of crops
-        seen as from a coarser image (``coarse_source``)."""
+        seen as from a coarser image (``coarse_source``); ``blank_p``: the share with a flat margin along one
+        side (``blank_margin``)."""
         self.min_inside = float(min_inside)
+        self.blank_p = float(blank_p)
         self.coarse_p = float(coarse_p)
         self.dirs = [Path(d) for d in (data_dirs if isinstance(data_dirs, (list, tuple)) else [data_dirs])]
         if shares is not None and (len(shares) != len(self.dirs) or min(shares) < 0 or sum(shares) <= 0):
@@ -296,7 +344,10 @@ class Sampler:
         # earlier runs re-run alike
         if self.coarse_p > 0 and "seed" in it and rng.random() < self.coarse_p:
             crop = coarse_source(crop, rng)
-        return photometric(crop, rng), drop_cut_boxes(bx, C, self.min_inside), labelled
+        crop, bx = photometric(crop, rng), drop_cut_boxes(bx, C, self.min_inside)
+        if self.blank_p > 0 and rng.random() < self.blank_p:  # after the photometry: the margin stays flat
+            crop, bx = blank_margin(crop, bx, rng)
+        return crop, bx, labelled
 
 
 # ------------------------------------------------------------------------------------------ training
@@ -381,7 +432,8 @@ def init_from_onnx(torch, net, onnx_path: Path, sampler: Sampler, batches: int =
 def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path | list | None = None,
           steps: int | None = None, batch: int = 16, crop: int = 160, lr: float = 2e-3, width: int = 16,
           threads: int = 1, data_minutes: float = 10.0, init: str | Path | None = None,
-          shares: list[float] | None = None, min_inside: float = 0.0, coarse_p: float = 0.0) -> dict:
+          shares: list[float] | None = None, min_inside: float = 0.0, coarse_p: float = 0.0,
+          blank_p: float = 0.0) -> dict:
     from ..registry import require
 
     torch = require("torch", "train", "training the learned detector")
@@ -394,7 +446,8 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
 
         data_dir = out / "data"
         generate(data_dir, list(range(100 + seed * 1000, 100 + seed * 1000 + 1000)), minutes=data_minutes)
-    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"), shares, min_inside, coarse_p)
+    sampler = Sampler(data_dir, crop, stage_rng(seed, "train", "detector", "samples"), shares, min_inside, coarse_p,
+                      blank_p)
     net = build_model(width)
     previous = None
     if init is not None:  # continue an earlier run (its settings are kept in the record)
@@ -474,6 +527,7 @@ def train(out_dir: str | Path, seed: int, minutes: float, data_dir: str | Path |
                     "reg": "offset(2) log(len/4) log(wid/4) cos2t sin2t cos t sin t"},
         "training": {"seed": seed, "minutes": minutes, "steps": step, "batch": batch, "crop_px": crop,
                      "lr": lr, "width": width, "threads": threads, "min_inside": min_inside, "coarse_p": coarse_p,
+                     "blank_p": blank_p,
                      "data": ", ".join(map(str, sampler.dirs)),
                      "levels": len(synth), "real_images": len(sampler.items) - len(synth), "shares": shares,
                      "presets": sorted({it["preset"] for it in synth}),
@@ -511,13 +565,19 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--coarse-p", type=float, default=0.0,
                     help="share of rendered crops seen as from a 1.5-5 times coarser image (default 0; tried at "
                          "0.3, not shipped: docs/benchmarks.md)")
+    ap.add_argument("--blank-p", type=float, default=0.0,
+                    help="share of crops with a flat margin along one side, objects under it kept whole (for a "
+                         "card's edge_margin_px; default 0)")
     a = ap.parse_args(argv)
+    if not 0.0 <= a.blank_p <= 1.0:
+        raise SystemExit(f"--blank-p must lie in [0, 1], got {a.blank_p}")
     if not 0.0 <= a.coarse_p <= 1.0:
         raise SystemExit(f"--coarse-p must lie in [0, 1], got {a.coarse_p}")
     if not 0.0 <= a.min_inside < 1.0:
         raise SystemExit(f"--min-inside must lie in [0, 1), got {a.min_inside}")
     train(a.out, a.seed, a.minutes, a.data, a.steps, a.batch, a.crop, lr=a.lr, threads=a.threads, init=a.init,
-          shares=a.share, min_inside=a.min_inside, coarse_p=a.coarse_p)
+          shares=a.share, min_inside=a.min_inside, coarse_p=a.coarse_p,
+          blank_p=a.blank_p)
 
 
 if __name__ == "__main__":
