@@ -154,20 +154,23 @@ class LearnedDetector:
 
     def run(self, work: np.ndarray, threshold: float | None = None, margin: int = 0) -> np.ndarray:
         """Decoded rows (see ``decode``) for one uint8 RGB image at the working GSD (tiled), down to
-        ``threshold`` (default: the lowest class threshold). ``margin``: pixels of flat colour added around
-        the image first, so that the network can place an object the picture cuts whole, its centre perhaps
-        outside (only for a network trained so: the card's ``edge_margin_px``)."""
+        ``threshold`` (default: the lowest class threshold). ``margin``: pixels of flat colour added along
+        the tiles' sides that are the image's edges, so that the network can place an object the picture
+        cuts whole, its centre perhaps outside (only for a network trained so: the card's
+        ``edge_margin_px``)."""
         import cv2
 
         from .yolo import slice_windows
 
-        if margin > 0:
-            work = cv2.copyMakeBorder(work, margin, margin, margin, margin, cv2.BORDER_CONSTANT, value=EDGE_FILL)
         h, w = work.shape[:2]
         stride = int(self.meta["stride"])
         rows = []
         for c0, r0, c1, r1 in slice_windows(w, h, TILE_PX, TILE_OVERLAP_PX):
             tile = work[r0:r1, c0:c1]
+            left, top = (margin if c0 == 0 else 0), (margin if r0 == 0 else 0)
+            right, bottom = (margin if c1 == w else 0), (margin if r1 == h else 0)
+            if left or top or right or bottom:  # per tile: the image's tiling (and cost) stay as without
+                tile = cv2.copyMakeBorder(tile, top, bottom, left, right, cv2.BORDER_CONSTANT, value=EDGE_FILL)
             th, tw = tile.shape[:2]
             ph, pw = (-th) % 32, (-tw) % 32  # whole cells at every level of the network
             if ph or pw:
@@ -180,13 +183,10 @@ class LearnedDetector:
                 peaks, reg = (o[0] for o in self.session.run(["peaks", "reg"], {"image": x}))
             d = decode(peaks, reg, self.threshold if threshold is None else threshold, stride)
             d = d[(d[:, 2] < tw) & (d[:, 3] < th)]  # nothing from the padding
-            d[:, 2] += c0
-            d[:, 3] += r0
+            d[:, 2] += c0 - left
+            d[:, 3] += r0 - top
             rows.append(d)
-        out = np.concatenate(rows, 0) if rows else np.zeros((0, 8))
-        if margin > 0:
-            out[:, 2:4] -= margin
-        return out
+        return np.concatenate(rows, 0) if rows else np.zeros((0, 8))
 
     def _run_flipped(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Peaks and box maps of one tile (1, 3, H, W) as the mean of the network's pass on it and on its
