@@ -69,6 +69,19 @@ OBJECT_RECOLOUR_P = 0.5  # share of rendered crops whose objects are recoloured 
 CUT_MAX_LENGTH = 0.5
 
 
+def shares_inside(boxes: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """The share of each box's area (``boxes`` N, >= 6: class, cx, cy, length, width, yaw, ...) inside the
+    convex ``region`` (its corners, float32); 1 for a box without area."""
+    from ..frames import box_corners_px
+
+    out = np.ones(len(boxes))
+    for k, (_, cx, cy, L, W, yaw) in enumerate(boxes[:, :6]):
+        if L * W > 0:
+            inside, _ = cv2.intersectConvexConvex(box_corners_px(cx, cy, L, W, yaw).astype(np.float32), region)
+            out[k] = inside / (L * W)
+    return out
+
+
 def drop_cut_boxes(boxes: np.ndarray, size: int, min_inside: float) -> np.ndarray:
     """``boxes`` (N, >= 6: class, cx, cy, length, width, yaw, ...) without those lying less than ``min_inside``
     of their area inside the ``size`` x ``size`` crop: what the crop cuts is no object to find, as the real
@@ -77,16 +90,8 @@ def drop_cut_boxes(boxes: np.ndarray, size: int, min_inside: float) -> np.ndarra
     learned to find any whose centre was inside."""
     if min_inside <= 0 or not len(boxes):
         return boxes
-    from ..frames import box_corners_px
-
     square = np.array([[0, 0], [size, 0], [size, size], [0, size]], np.float32)
-    keep = np.ones(len(boxes), bool)
-    for k, (_, cx, cy, L, W, yaw) in enumerate(boxes[:, :6]):
-        if L > CUT_MAX_LENGTH * size or L * W <= 0:
-            continue
-        corners = box_corners_px(cx, cy, L, W, yaw).astype(np.float32)
-        inside, _ = cv2.intersectConvexConvex(corners, square)
-        keep[k] = inside >= min_inside * L * W
+    keep = (shares_inside(boxes, square) >= min_inside) | (boxes[:, 3] > CUT_MAX_LENGTH * size)
     return boxes[keep]
 
 
@@ -127,16 +132,7 @@ def blank_margin(img: np.ndarray, boxes: np.ndarray, rng: np.random.Generator) -
         visible[[2, 3], 1] = size - width
     if not len(boxes):
         return out, boxes
-    from ..frames import box_corners_px
-
-    keep = np.ones(len(boxes), bool)
-    for k, (_, cx, cy, L, W, yaw) in enumerate(boxes[:, :6]):
-        if L * W <= 0:
-            continue
-        corners = box_corners_px(cx, cy, L, W, yaw).astype(np.float32)
-        seen, _ = cv2.intersectConvexConvex(corners, visible)
-        keep[k] = seen >= BLANK_MIN_VISIBLE * L * W
-    return out, boxes[keep]
+    return out, boxes[shares_inside(boxes, visible) >= BLANK_MIN_VISIBLE]
 
 
 def recolour_objects(img: np.ndarray, boxes: np.ndarray, rng: np.random.Generator, shrink: float = 0.85) -> np.ndarray:
