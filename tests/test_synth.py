@@ -316,3 +316,21 @@ def test_rafted_mix_ties_boats_alongside_end_to_end_and_two_deep():
     train, rafted = count(TRAINING_MIX), count(RAFTED_MIX)
     assert rafted["alongside"] >= 2 * max(1, train["alongside"])
     assert rafted["rafted"] >= 1 and train["rafted"] == 0
+
+
+def test_big_mix_adds_big_vessels_and_leaves_the_other_mixes_alone():
+    """The detector's big-vessel training data: kit boats scaled to 20-50 m at anchor and alongside walkways
+    (the kit's largest boat is 18 m, the real photos' reach 60 m); the training mix draws none."""
+    from coastforge.synth.layout import BIG_LENGTH_M, BIG_MIX, TRAINING_MIX
+
+    def boats(mix):
+        out = []
+        for preset, seed in (("beach", 221), ("simple_pier_a", 222), ("rocky_shore", 223), ("marina", 224)):
+            out += [(o.asset_id, round(o.length_m, 3), round(o.x_m, 3), round(o.y_m, 3))
+                    for o in synthesize_level(preset, seed, size_m=180, mix=mix).scene.objects if o.category == "boat"]
+        return out
+
+    big, train = boats(BIG_MIX), boats(TRAINING_MIX)
+    long_ones = [b for b in big if b[1] >= BIG_LENGTH_M[0] - 1e-6]
+    assert len(long_ones) >= 2 and max(b[1] for b in long_ones) <= BIG_LENGTH_M[1] + 1e-6
+    assert not [b for b in train if b[1] >= BIG_LENGTH_M[0]]

@@ -126,6 +126,9 @@ class Mix:
     finger_drop_p: float = 0.0
     side_gap_m: tuple[float, float] = (1.0, 4.0)
     raft_p: float = 0.0
+    # big vessels (``BIG_LENGTH_M``: ferries, trawlers, superyachts; the kit's largest boat is 18 m): the share
+    # of anchored boats and of boats tied alongside a walkway that are a kit boat scaled up (``big_boat``)
+    big_p: float = 0.0
 
     def prior(self, asset_id: str) -> float:
         return dict(self.boat_prior).get(asset_id, 0.5)
@@ -140,7 +143,8 @@ TRAINING_MIX = Mix(
     extra_boats=("dinghy", "kayak", "rowboat", "center_console"),
     bus_p=0.85, aisle_p=0.6)
 RAFTED_MIX = replace(TRAINING_MIX, finger_drop_p=0.5, side_gap_m=(0.35, 1.5), raft_p=0.3)
-MIXES = {"benchmark": BENCHMARK_MIX, "training": TRAINING_MIX, "rafted": RAFTED_MIX}
+BIG_MIX = replace(TRAINING_MIX, finger_drop_p=0.5, big_p=0.4)
+MIXES = {"benchmark": BENCHMARK_MIX, "training": TRAINING_MIX, "rafted": RAFTED_MIX, "big": BIG_MIX}
 
 
 class Layout:
@@ -310,6 +314,24 @@ def pick_boat(layout: Layout, rng: np.random.Generator, max_len: float, max_beam
     return t, float(s * rng.uniform(0.96, 1.04) if s * 1.04 * layout.catalog[t].length_m <= max_len else s)
 
 
+BIG_LENGTH_M = (20.0, 50.0)  # the real sets' boats reach 60 m; the detector's range is 2-60 m
+BIG_TYPES = ("yacht", "fishing_boat", "catamaran", "cabin_cruiser", "sailboat")
+
+
+def big_boat(layout: Layout, rng: np.random.Generator, max_len: float = BIG_LENGTH_M[1]) -> tuple[str, float] | None:
+    """A kit boat type and the scale that makes it a big vessel of ``BIG_LENGTH_M`` (at most ``max_len``), or
+    None when the mix has no big boats or this draw is not one. Draws nothing when ``big_p`` is 0, so the
+    other mixes' levels stay as they were."""
+    if layout.mix.big_p <= 0 or rng.random() >= layout.mix.big_p:
+        return None
+    types = [t for t in BIG_TYPES if t in layout.catalog]
+    if not types or max_len < BIG_LENGTH_M[0]:
+        return None
+    t = str(rng.choice(types))
+    length = float(rng.uniform(BIG_LENGTH_M[0], min(BIG_LENGTH_M[1], max_len)))
+    return t, length / layout.catalog[t].length_m
+
+
 # ---------------------------------------------------------------- piers
 
 
@@ -467,7 +489,7 @@ def add_pier(layout: Layout, spec: PierSpec, structure: str, rng: np.random.Gene
                 continue
             t = t_water + rng.uniform(0.5, 3.0)
             while t < total:
-                pick = pick_boat(layout, rng, rng.uniform(6, 14), 4.5, 3.0, spec.boat_types)
+                pick = big_boat(layout, rng) or pick_boat(layout, rng, rng.uniform(6, 14), 4.5, 3.0, spec.boat_types)
                 if pick is None:
                     break
                 t_id, sc = pick
@@ -532,10 +554,14 @@ def add_anchored(layout: Layout, rng: np.random.Generator, count: int, wind_deg:
     for u, v in pts:
         if placed >= count:
             break
-        t_id = str(rng.choice([t for t in types + layout.mix.extra_boats if t in layout.catalog]))
-        sc = float(rng.uniform(0.9, 1.1))
+        big = big_boat(layout, rng)
+        if big is not None:
+            t_id, sc = big
+        else:
+            t_id = str(rng.choice([t for t in types + layout.mix.extra_boats if t in layout.catalog]))
+            sc = float(rng.uniform(0.9, 1.1))
         yaw = wind_deg + rng.normal(0, 35.0)
-        mooring = rng.random() < buoy_p
+        mooring = big is None and rng.random() < buoy_p
         state = {"state": "mooring" if mooring else "anchored"}
         o = layout.try_boat(t_id, u, v, yaw, sc, state, clearance=4.0)
         if o is None:

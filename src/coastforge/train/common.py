@@ -96,7 +96,8 @@ def data_main(argv: list[str] | None, description: str, default_seeds: str,
 
         ap.add_argument("--mix", choices=tuple(MIXES), default="benchmark",
                         help="asset types as in the benchmark's levels, or with rare ones shown more often (training), "
-                             "and boats tied alongside end to end and rafted (rafted)")
+                             "and boats tied alongside end to end and rafted (rafted), or with big vessels of 20-50 m "
+                             "at anchor and alongside (big)")
     if looks_option:
         ap.add_argument("--library", default=None, help="render with this asset library's assets (default: the kit)")
         ap.add_argument("--looks", choices=("kit", "varied", "covers", "wakes"), default="kit",

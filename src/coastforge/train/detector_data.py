@@ -197,10 +197,11 @@ def generate(out_dir: str | Path, seeds: list[int], presets: list[str] | None = 
         return ({"image": name, "preset": preset, "seed": seed, "render_gsd_m": round(gsd, 4),
                  "boxes": [[round(v, 3) for v in b] for b in boxes]}, f"boxes={len(boxes)}")
 
-    # level sizes kept small (fast, many layouts)
+    # level sizes kept small (fast, many layouts); the big vessels' mix needs room for 20-50 m boats
     head = {"work_gsd_m": WORK_GSD_M, "mix": mix, "library": str(library) if library else "kit", "looks": looks}
     return render_levels(out_dir, seeds, make_item, stage="detector_data", index_head=head, presets=presets,
-                         gsd_range=gsd_range, size_range_m=(70.0, 150.0), minutes=minutes)
+                         gsd_range=gsd_range, size_range_m=(120.0, 220.0) if mix == "big" else (70.0, 150.0),
+                         minutes=minutes)
 
 
 def main(argv: list[str] | None = None) -> None:
