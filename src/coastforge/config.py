@@ -106,6 +106,10 @@ class DetectConfig:
     # learned backend: a boat or vehicle the network is unsure of gains this much score for each confident one
     # of its class moored or parked beside it, parallel (at most two: ``detection.learned.row_context``)
     row_context: float = 0.05
+    # learned backend: the network also runs on the image shrunk this many times, for big vessels (20 m and
+    # more: longer than anything its working scale was trained on), which replace at most one shorter
+    # parallel box of the normal pass inside them (``LearnedDetector.big_vessels``; 0 = off)
+    big_pass: float = 0.0
     # a boat or vehicle whose box lies less than this share inside the image is left out: the picture's
     # edge cuts it, so its size and kind are guesses, and the neighbouring image of a mosaic holds it
     # (``detection.drop_cut_by_frame``; 0 keeps them all)
@@ -492,6 +496,7 @@ _RANGES: dict[str, tuple[float, float]] = {  # inclusive; these replace the ">= 
     "seed": (0, 2**63 - 1),  # numpy seeds are unsigned
     "segment.learned_flips": (1, 4),  # as is, mirrored, flipped, both
     "detect.snap_deg": (0.0, 90.0),
+    "detect.big_pass": (0.0, 8.0),  # 0 = off; else how many times the image is shrunk (> 1)
     "vegetation.max_slope_deg_trees": (0.0, 90.0),
     "match.heading_prior_ref_px": (-math.inf, math.inf),  # documented: <= 0 means no scaling
     "segment.smooth_px": (0, 255),  # a majority filter radius; OpenCV's box filters take no more

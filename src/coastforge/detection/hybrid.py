@@ -115,6 +115,7 @@ class HybridDetector:
             weak = [d for d in learned if d.category == "boat"]
             extra = _defragment(_supported(extra, weak), weak)
         extra = _not_decks(image.rgb, extra, piers)
+        extra = _off_big_vessels(extra, objects, image.grid.gsd_m)
         extra = _afloat(extra, class_map, image.grid.width_px, image.grid.height_px)
         if floor is not None:
             extra = _net_axes(extra, weak)
@@ -165,6 +166,15 @@ def _piers_off_boats(piers: list[Detection], dets: list[Detection]) -> list[Dete
             continue
         out.append(p)
     return out
+
+
+def _off_big_vessels(boxes: list[Detection], net: list[Detection], gsd_m: float) -> list[Detection]:
+    """Classical boats not centred in a big vessel of the net (``detect.big_pass``; its box grown as there):
+    the colour mask splits a big hull at its decks and superstructure."""
+    from .learned import BIG_MIN_LENGTH_M, inside_grown
+
+    big = [d for d in net if d.category == "boat" and d.length_px * gsd_m >= BIG_MIN_LENGTH_M]
+    return [d for d in boxes if not any(inside_grown(b, d.cx_px, d.cy_px) for b in big)] if big else boxes
 
 
 def _inside(boxes: list[Detection], evidence: list[Detection]) -> np.ndarray:

@@ -54,6 +54,21 @@ ROW_MAX_DYAW_DEG, ROW_MAX_ALONG, ROW_MIN_ACROSS, ROW_MAX_ACROSS, ROW_MAX_NEIGHBO
 # vehicles gained nothing once ``refine`` had fitted their mirror axis (docs/benchmarks.md) and are most of
 # the objects in car parks: not worth the time
 TTA_CATEGORIES = ("boat",)
+# ``big_vessels``: boats of the shrunk pass at least BIG_MIN_LENGTH_M long (the renders' boats reach 22 m at
+# the working scale; beyond it the normal pass sees a vessel's parts); a box of the normal pass inside one
+# whose axis is within BIG_FRAGMENT_DYAW_DEG of it is a part of it, two or more (or a crossing one) say a
+# row of boats or a blob of other things the shrunk view merged
+BIG_MIN_LENGTH_M, BIG_FRAGMENT_DYAW_DEG = 20.0, 20.0
+BIG_GROW = 1.25  # a part's centre lies in the big box grown as the benchmarks' matching rule grows labels
+BIG_ROW_SHARE = 0.6  # two or more parallel boxes this long together are boats end to end, not parts
+
+
+def inside_grown(b: Detection, x: float, y: float, grow: float = BIG_GROW) -> bool:
+    """Whether the point (x, y) in pixels lies in ``b``'s box grown ``grow`` times along and across."""
+    a = math.radians(b.yaw_deg)
+    dx, dy = x - b.cx_px, y - b.cy_px
+    along, across = dx * math.cos(a) - dy * math.sin(a), dx * math.sin(a) + dy * math.cos(a)
+    return abs(along) <= grow * b.length_px / 2 and abs(across) <= grow * b.width_px / 2
 
 
 def default_weights() -> Path:
@@ -273,7 +288,46 @@ class LearnedDetector:
         strong = [d for d in strong if d.category != "vehicle" or id(d) in keep]
         if cfg.axis_tta:
             strong = self.tta_axes(work, strong, sx, sy)
+        if cfg.big_pass and cfg.big_pass > 1.0:  # after the axes' crops: at the working scale they see parts
+            strong = self.big_vessels(work, strong, float(cfg.big_pass), sx, sy)
         return strong + weak
+
+    def big_vessels(self, work: np.ndarray, dets: list[Detection], factor: float, sx: float = 1.0,
+                    sy: float = 1.0) -> list[Detection]:
+        """``dets`` with the big vessels the network finds on ``work`` shrunk ``factor`` times (there a 20-50 m
+        vessel is as many pixels as the 5-15 m boats it knows best). Each big box (a confident boat of at least
+        BIG_MIN_LENGTH_M) replaces the boxes of the normal pass centred in it (grown BIG_GROW times): the parts
+        of the vessel the normal pass saw. It is left out where those say that the shrunk view merged several
+        things: a vehicle or buoy, a box as long as it, two or more crossing it (boats abreast), or parallel
+        ones together BIG_ROW_SHARE of its length (boats end to end)."""
+        import cv2
+
+        work_gsd = float(self.meta["work_gsd_m"])
+        nh, nw = work.shape[:2]
+        small = cv2.resize(work, (max(8, int(round(nw / factor))), max(8, int(round(nh / factor)))),
+                           interpolation=cv2.INTER_AREA)
+        fx, fy = nw / small.shape[1], nh / small.shape[0]
+        boat = list(self.meta["classes"]).index("boat")
+        thr = self.class_threshold["boat"]
+        big = []
+        for c, score, cx, cy, length, width, yaw, conf in self.run(small, thr):
+            L = length * 0.5 * (fx + fy)
+            if int(c) != boat or score < thr or not BIG_MIN_LENGTH_M <= L * work_gsd <= self.config.max_boat_length_m:
+                continue
+            big.append(Detection("boat", float(score), float(cx * fx / sx), float(cy * fy / sy),
+                                 float(L / (0.5 * (sx + sy))), float(width * 0.5 * (fx + fy) / (0.5 * (sx + sy))),
+                                 float(yaw), heading_known=bool(conf >= HEADING_KNOWN_CONF),
+                                 heading_confidence=float(conf)))
+        out = list(dets)
+        for b in rotated_nms(big, self.config.nms_iou, class_aware=False, ioa_threshold=0.5):
+            near = [i for i, d in enumerate(out) if inside_grown(b, d.cx_px, d.cy_px)]
+            parallel = [i for i in near if abs(wrap_half_deg(out[i].yaw_deg - b.yaw_deg)) <= BIG_FRAGMENT_DYAW_DEG]
+            if any(out[i].category != "boat" or out[i].length_px >= b.length_px for i in near) \
+                    or len(near) - len(parallel) > 1 \
+                    or (len(parallel) > 1 and sum(out[i].length_px for i in parallel) >= BIG_ROW_SHARE * b.length_px):
+                continue  # a vehicle, a row of boats abreast or end to end: not one vessel
+            out = [d for i, d in enumerate(out) if i not in near] + [b]
+        return out
 
     def tta_axes(self, work: np.ndarray, dets: list[Detection], sx: float = 1.0,
                  sy: float = 1.0) -> list[Detection]:
