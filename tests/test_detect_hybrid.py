@@ -191,3 +191,17 @@ def test_default_preset_on_the_real_marina_with_its_class_map(shared_data):
     s = Score("marina")
     match(ships, [x for x in dets if x.category == "boat"], s)
     assert s.recall >= 0.87 and s.precision >= 0.85 and s.orient_rmse <= 3.5
+
+
+def test_classical_pieces_of_a_big_vessel_go():
+    """The colour mask splits a big hull at its decks: classical boats centred in a net boat of 20 m or more
+    (its box grown 25 %) go; one beside it stays, and a net boat under 20 m removes nothing here."""
+    from coastforge.detection.hybrid import _off_big_vessels
+    from coastforge.types import Detection
+
+    big = Detection("boat", 0.8, 200.0, 200.0, 150.0, 40.0, 0.0)  # 30 m at 0.2 m/px
+    pieces = [Detection("boat", 0.35, 150.0, 205.0, 40.0, 15.0, 90.0),
+              Detection("boat", 0.35, 270.0, 222.0, 30.0, 12.0, 0.0)]
+    beside = Detection("boat", 0.35, 200.0, 260.0, 40.0, 14.0, 0.0)
+    assert _off_big_vessels([*pieces, beside], [big], 0.2) == [beside]
+    assert _off_big_vessels([*pieces, beside], [big], 0.1) == [*pieces, beside]  # 15 m: no big vessel

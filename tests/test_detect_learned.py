@@ -439,3 +439,40 @@ def test_row_context_raises_a_weak_boat_in_a_gap_of_a_moored_row(monkeypatch):
 
     assert found(0.0) == [(100, 100), (100, 116), (100, 148)]
     assert found(0.05) == [(100, 100), (100, 116), (100, 148), (101, 132)]
+
+
+def test_big_vessel_pass_replaces_the_parts_of_a_big_hull_and_leaves_rows_of_boats(monkeypatch):
+    """``detect.big_pass``: a 40 m vessel the normal pass sees only a part of is found whole on the image
+    shrunk three times and replaces that part; where the shrunk view merges boats moored end to end or
+    abreast, or a car park, into one long "boat", the normal pass's boxes stay. The stand-in network
+    answers by the size of what it is given (working pixels, 0.2 m)."""
+    full = {  # the normal pass, on the 600 x 600 px image
+        "part": [0, 0.6, 160.0, 150.0, 50.0, 18.0, 2.0, 0.9],  # a part of the big hull at (150, 150)
+        "row": [[0, 0.8, x, 450.0, 60.0, 20.0, 0.0, 0.9] for x in (100.0, 165.0, 230.0)],  # end to end
+        "abreast": [[0, 0.8, 450.0, y, 50.0, 16.0, 0.0, 0.9] for y in (370.0, 390.0, 410.0, 430.0)],
+        "car": [1, 0.8, 480.0, 120.0, 22.0, 10.0, 90.0, 0.9],
+    }
+    shrunk = np.array([  # the shrunk pass (x 1/3): each group seen as one long boat
+        [0, 0.8, 50.0, 50.0, 200 / 3, 20.0, 0.0, 0.9],
+        [0, 0.7, 55.0, 150.0, 200 / 3, 20.0, 0.0, 0.9],
+        [0, 0.7, 150.0, 400 / 3, 40.0, 18.0, 90.0, 0.9],
+        [0, 0.7, 160.0, 40.0, 40.0, 15.0, 90.0, 0.9],
+    ])
+    normal = np.array([full["part"], *full["row"], *full["abreast"], full["car"]], np.float64)
+    img = GeoImage(rgb=np.zeros((600, 600, 3), np.uint8), grid=Grid(600, 600, 0.2))
+
+    def boats(factor):
+        det = LearnedDetector(DetectConfig(axis_tta=False, row_context=0.0, big_pass=factor))
+
+        def run(work, threshold=None, margin=0):
+            rows = normal if work.shape[0] == 600 else shrunk
+            return rows[rows[:, 1] >= (threshold or 0.0)]
+
+        monkeypatch.setattr(det, "run", run)
+        return sorted((round(d.cx_px), round(d.cy_px), round(d.length_px)) for d in det.detect(img, None, 0)
+                      if d.category == "boat")
+
+    rest = [(100, 450, 60), (165, 450, 60), (230, 450, 60), (450, 370, 50), (450, 390, 50), (450, 410, 50),
+            (450, 430, 50)]
+    assert boats(0.0) == sorted([(160, 150, 50), *rest])
+    assert boats(3.0) == sorted([(150, 150, 200), *rest])
