@@ -52,6 +52,8 @@ def _no_output(out):
     (["export.formats=['gltf','fbx']"], None, "export.formats = 'fbx' is not a known export format"),
     (["library.embed_scales=[1.0,-2.0]"], None, "library.embed_scales = (1.0, -2.0) must be a list whose every item"),
     (["detect.snap_deg=120"], None, "detect.snap_deg = 120.0 must be between 0.0 and 90.0"),
+    (["detect.big_pass=0.5"], None, "detect.big_pass = 0.5 must be 0 (off) or how many times to shrink"),
+    (["detect.big_pass=12"], None, "detect.big_pass = 12.0 must be between 0.0 and 8.0"),
     (["io.max_memory_gb=0"], None, "io.max_memory_gb = 0.0 must be > 0"),
     (["seed=-3"], None, "seed = -3 must be between 0 and 9223372036854775807"),
     ([], -1, "seed = -1 must be between 0 and 9223372036854775807; fix it with --seed N"),

@@ -350,6 +350,14 @@ def detect_cut(cfg: Config, w: World):
     return detect(GeoImage(rgb, Grid(rgb.shape[1], rgb.shape[0], GSD)), cfg.detect, seed=0)
 
 
+def detect_seen_closer(cfg: Config, w: World):
+    """``detect`` told the level is three times coarser than it is: its boats are then 15-30 m vessels."""
+    from coastforge.detection import detect
+
+    rgb = w.image.rgb
+    return detect(GeoImage(rgb, Grid(rgb.shape[1], rgb.shape[0], 3 * GSD)), cfg.detect, seed=0)
+
+
 def detect_hybrid(cfg: Config, w: World):
     """The hybrid backend, its classical half's boats given (as the side process gives them)."""
     from concurrent.futures import Future
@@ -576,6 +584,7 @@ PROBES: dict[str, Probe] = {
     "detect.axis_tta": _p(detect_run, False, **LEARNED),
     "detect.flip_tta": _p(detect_run, False, **LEARNED),
     "detect.row_context": _p(detect_run, 0.3, **LEARNED),
+    "detect.big_pass": _p(detect_seen_closer, 0.0, **LEARNED),
     "detect.min_score": _p(detect_run, 0.8),
     "detect.min_inside": _p(detect_cut, 0.0),
     "detect.slice_px": _p(detect_onnx, 256),

@@ -107,9 +107,9 @@ class DetectConfig:
     # of its class moored or parked beside it, parallel (at most two: ``detection.learned.row_context``)
     row_context: float = 0.05
     # learned backend: the network also runs on the image shrunk this many times, for big vessels (20 m and
-    # more: longer than anything its working scale was trained on), which replace at most one shorter
-    # parallel box of the normal pass inside them (``LearnedDetector.big_vessels``; 0 = off)
-    big_pass: float = 0.0
+    # more: longer than anything its working scale was trained on), which replace the parts of them the normal
+    # pass saw (``LearnedDetector.big_vessels``; 0 = off)
+    big_pass: float = 3.0
     # a boat or vehicle whose box lies less than this share inside the image is left out: the picture's
     # edge cuts it, so its size and kind are guesses, and the neighbouring image of a mosaic holds it
     # (``detection.drop_cut_by_frame``; 0 keeps them all)
@@ -601,6 +601,9 @@ def validate_config(cfg: Config) -> Config:
             raise ConfigError(f"config key {lo_key} = {flat[lo_key]!r} is larger than {hi_key} = {flat[hi_key]!r}; "
                               f"the minimum must not exceed the maximum: fix one of them with --set or in the "
                               "config file")
+    if 0 < flat["detect.big_pass"] <= 1:
+        raise _bad("detect.big_pass", flat["detect.big_pass"], "0 (off) or how many times to shrink the image, "
+                                                               "more than 1 (the default: 3)")
     if flat["detect.slice_overlap_px"] >= flat["detect.slice_px"]:
         raise ConfigError(f"config key detect.slice_overlap_px = {flat['detect.slice_overlap_px']!r} must be smaller "
                           f"than detect.slice_px = {flat['detect.slice_px']!r} (windows would not advance); fix "
