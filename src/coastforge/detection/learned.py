@@ -55,9 +55,9 @@ ROW_MAX_DYAW_DEG, ROW_MAX_ALONG, ROW_MIN_ACROSS, ROW_MAX_ACROSS, ROW_MAX_NEIGHBO
 # the objects in car parks: not worth the time
 TTA_CATEGORIES = ("boat",)
 # ``big_vessels``: boats of the shrunk pass at least BIG_MIN_LENGTH_M long (the renders' boats reach 22 m at
-# the working scale; beyond it the normal pass sees a vessel's parts); a box of the normal pass inside one
-# whose axis is within BIG_FRAGMENT_DYAW_DEG of it is a part of it, two or more (or a crossing one) say a
-# row of boats or a blob of other things the shrunk view merged
+# the working scale; beyond it the normal pass sees a vessel's parts); boxes of the normal pass inside one
+# are its parts unless two or more cross it (axes more than BIG_FRAGMENT_DYAW_DEG apart: boats abreast) or
+# parallel ones fill BIG_ROW_SHARE of it (boats end to end)
 BIG_MIN_LENGTH_M, BIG_FRAGMENT_DYAW_DEG = 20.0, 20.0
 BIG_GROW = 1.25  # a part's centre lies in the big box grown as the benchmarks' matching rule grows labels
 BIG_ROW_SHARE = 0.6  # two or more parallel boxes this long together are boats end to end, not parts
