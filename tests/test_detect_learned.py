@@ -126,7 +126,7 @@ def test_a_flat_margin_keeps_objects_the_picture_cuts_whole():
 def test_an_edge_margin_places_a_cut_object_in_the_pictures_frame(monkeypatch):
     """A card's ``edge_margin_px`` pads the picture with flat colour before the network runs; boxes come
     back in the picture's pixels, and one centred in the margin (under half inside) is left out."""
-    det = LearnedDetector(DetectConfig(flip_tta=False, axis_tta=False, refine=False, row_context=0.0))
+    det = LearnedDetector(DetectConfig(flip_tta=False, axis_tta=False, refine=False, row_context=0.0, big_pass=0.0))
     det.meta = {**det.meta, "edge_margin_px": 32}
     seen = []
 
@@ -433,7 +433,7 @@ def test_row_context_raises_a_weak_boat_in_a_gap_of_a_moored_row(monkeypatch):
     img = GeoImage(rgb=np.zeros((400, 400, 3), np.uint8), grid=Grid(400, 400, 0.2))
 
     def found(boost):
-        det = LearnedDetector(DetectConfig(axis_tta=False, row_context=boost))
+        det = LearnedDetector(DetectConfig(axis_tta=False, row_context=boost, big_pass=0.0))
         monkeypatch.setattr(det, "run", lambda work, threshold=None, margin=0: rows[rows[:, 1] >= threshold])
         return sorted((round(d.cx_px), round(d.cy_px)) for d in det.detect(img, None, 0))
 
