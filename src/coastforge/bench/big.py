@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..synth.level import PRESETS
+from ..train.detector_data import WORK_GSD_M
 from ..types import Detection
 
 BIG_M = 20.0  # a big vessel: at least this long
-WORK_GSD_M = 0.2
-PRESETS = ("simple_pier_a", "simple_pier_b", "pier_parking", "marina", "lake_harbor", "beach", "rocky_shore")
 
 
 @dataclass

@@ -36,6 +36,7 @@ import numpy as np
 from ..classes import WATER
 from ..config import DetectConfig
 from ..types import ClassMap, Detection, GeoImage
+from .nms import centres_inside
 
 PIERS = ("pier_walkway", "pier_finger")
 UNION_IOA = 0.3
@@ -171,30 +172,20 @@ def _piers_off_boats(piers: list[Detection], dets: list[Detection]) -> list[Dete
 def _off_big_vessels(boxes: list[Detection], net: list[Detection], gsd_m: float) -> list[Detection]:
     """Classical boats not centred in a big vessel of the net (``detect.big_pass``; its box grown as there):
     the colour mask splits a big hull at its decks and superstructure."""
-    from .learned import BIG_MIN_LENGTH_M, inside_grown
+    from .learned import BIG_GROW, BIG_MIN_LENGTH_M
 
     big = [d for d in net if d.category == "boat" and d.length_px * gsd_m >= BIG_MIN_LENGTH_M]
-    return [d for d in boxes if not any(inside_grown(b, d.cx_px, d.cy_px) for b in big)] if big else boxes
-
-
-def _inside(boxes: list[Detection], evidence: list[Detection]) -> np.ndarray:
-    """(len(boxes), len(evidence)) bool: evidence box j's centre lies inside box i."""
-    pts = np.array([[e.cx_px, e.cy_px] for e in evidence], float).reshape(-1, 2)
-    b = np.array([[d.cx_px, d.cy_px, d.length_px, d.width_px, d.yaw_deg] for d in boxes], float).reshape(-1, 5)
-    r = np.deg2rad(b[:, 4])
-    fx, fy = np.cos(r), -np.sin(r)  # forward in (col, row)
-    dx = pts[None, :, 0] - b[:, None, 0]
-    dy = pts[None, :, 1] - b[:, None, 1]
-    u = dx * fx[:, None] + dy * fy[:, None]
-    v = -dx * fy[:, None] + dy * fx[:, None]
-    return (np.abs(u) <= b[:, None, 2] / 2) & (np.abs(v) <= b[:, None, 3] / 2)
+    if not big or not boxes:
+        return boxes
+    hit = centres_inside(big, boxes, BIG_GROW).any(0)
+    return [d for d, h in zip(boxes, hit) if not h]
 
 
 def _supported_by(boxes: list[Detection], evidence: list[Detection]) -> list[Detection]:
     """The ``evidence`` boxes whose centre lies inside one of ``boxes``."""
     if not boxes or not evidence:
         return []
-    hit = _inside(boxes, evidence).any(0)
+    hit = centres_inside(boxes, evidence).any(0)
     return [e for e, h in zip(evidence, hit) if h]
 
 
@@ -206,7 +197,7 @@ def _defragment(boxes: list[Detection], net: list[Detection]) -> list[Detection]
     pieces of that boat (its mask split at a dark deck or a shadow): the net's box replaces them."""
     if not boxes or not net:
         return boxes
-    inside = _inside(net, boxes)  # (net, boxes)
+    inside = centres_inside(net, boxes)  # (net, boxes)
     out = []
     for j, b in enumerate(boxes):
         around = [net[i] for i in np.flatnonzero(inside[:, j]) if b.length_px < FRAGMENT_RATIO * net[i].length_px]
@@ -221,7 +212,7 @@ def _net_axes(boxes: list[Detection], net: list[Detection]) -> list[Detection]:
     weak boxes there 1-2°), while its centre and size are the better ones where the net is unsure."""
     if not boxes or not net:
         return boxes
-    mutual = _inside(net, boxes) & _inside(boxes, net).T  # (net, boxes)
+    mutual = centres_inside(net, boxes) & centres_inside(boxes, net).T  # (net, boxes)
     out = []
     for j, b in enumerate(boxes):
         same = [net[i] for i in np.flatnonzero(mutual[:, j])
@@ -238,7 +229,7 @@ def _supported(boxes: list[Detection], evidence: list[Detection]) -> list[Detect
     """The boxes holding the centre of at least one ``evidence`` box."""
     if not boxes or not evidence:
         return []
-    hit = _inside(boxes, evidence).any(1)
+    hit = centres_inside(boxes, evidence).any(1)
     return [b for b, h in zip(boxes, hit) if h]
 
 

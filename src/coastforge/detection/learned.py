@@ -25,7 +25,7 @@ from ..config import DetectConfig
 from ..errors import InputError
 from ..frames import wrap_deg, wrap_half_deg
 from ..types import ClassMap, Detection, GeoImage
-from .nms import rotated_nms
+from .nms import centres_inside, rotated_nms
 
 DEFAULT_META = {"classes": ["boat", "vehicle", "buoy"], "work_gsd_m": 0.2, "stride": 4, "thresholds": {},
                 "thresholds_single_pass": {}, "edge_margin_px": 0}
@@ -66,14 +66,6 @@ BIG_ROW_SHARE = 0.6  # two or more parallel boxes this long together are boats e
 # vessels 0.41-0.78 (21 of 27 kept). ships_aerial training split, boxes of 20 m or more: at the boat threshold
 # 13 of 19 true, at 0.55 9 of 10
 BIG_MIN_SCORE = 0.55
-
-
-def inside_grown(b: Detection, x: float, y: float, grow: float = BIG_GROW) -> bool:
-    """Whether the point (x, y) in pixels lies in ``b``'s box grown ``grow`` times along and across."""
-    a = math.radians(b.yaw_deg)
-    dx, dy = x - b.cx_px, y - b.cy_px
-    along, across = dx * math.cos(a) - dy * math.sin(a), dx * math.sin(a) + dy * math.cos(a)
-    return abs(along) <= grow * b.length_px / 2 and abs(across) <= grow * b.width_px / 2
 
 
 def default_weights() -> Path:
@@ -325,7 +317,7 @@ class LearnedDetector:
                                  heading_confidence=float(conf)))
         out = list(dets)
         for b in rotated_nms(big, self.config.nms_iou, class_aware=False, ioa_threshold=0.5):
-            near = [i for i, d in enumerate(out) if inside_grown(b, d.cx_px, d.cy_px)]
+            near = list(np.flatnonzero(centres_inside([b], out, BIG_GROW)[0]))
             parallel = [i for i in near if abs(wrap_half_deg(out[i].yaw_deg - b.yaw_deg)) <= BIG_FRAGMENT_DYAW_DEG]
             if any(out[i].category != "boat" or out[i].length_px >= b.length_px for i in near) \
                     or len(near) - len(parallel) > 1 \

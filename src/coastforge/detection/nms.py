@@ -7,6 +7,20 @@ import numpy as np
 from ..types import Detection
 
 
+def centres_inside(boxes: list[Detection], evidence: list[Detection], grow: float = 1.0) -> np.ndarray:
+    """(len(boxes), len(evidence)) bool: evidence box j's centre lies inside box i grown ``grow`` times along
+    and across."""
+    pts = np.array([[e.cx_px, e.cy_px] for e in evidence], float).reshape(-1, 2)
+    b = np.array([[d.cx_px, d.cy_px, d.length_px, d.width_px, d.yaw_deg] for d in boxes], float).reshape(-1, 5)
+    r = np.deg2rad(b[:, 4])
+    fx, fy = np.cos(r), -np.sin(r)  # forward in (col, row)
+    dx = pts[None, :, 0] - b[:, None, 0]
+    dy = pts[None, :, 1] - b[:, None, 1]
+    u = dx * fx[:, None] + dy * fy[:, None]
+    v = -dx * fy[:, None] + dy * fx[:, None]
+    return (np.abs(u) <= grow * b[:, None, 2] / 2) & (np.abs(v) <= grow * b[:, None, 3] / 2)
+
+
 def polygon_iou(a: np.ndarray, b: np.ndarray) -> float:
     """IoU of two convex polygons given as (N, 2) corner arrays."""
     from shapely.geometry import Polygon
