@@ -149,3 +149,46 @@ def test_gsd_sweep_runs_on_one_photo():
         assert 0 <= x["matched"] <= min(x["objects"], x["preds"])
     # the same cars seen from 4 times higher (0.52 m/px) are still mostly found
     assert rows[1]["recall"] >= 0.5 * rows[0]["recall"]
+
+
+def test_weathered_keeps_size_and_gsd_and_changes_the_look():
+    from coastforge.bench.real import WEATHER, weathered
+    from coastforge.types import GeoImage, Grid
+
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(40, 200, (32, 48, 3)).astype(np.uint8)
+    rgb[:, :24] = (30, 60, 90)  # a dark blue half
+    img = GeoImage(rgb, Grid(48, 32, 0.3))
+    out = {k: weathered(img, k) for k in WEATHER}
+    for k, o in out.items():
+        assert o.rgb.shape == rgb.shape and o.rgb.dtype == np.uint8 and o.grid == img.grid, k
+        assert not np.array_equal(o.rgb, rgb), k
+    assert out["haze"].rgb.std() < rgb.std() and out["haze"].rgb.mean() > rgb.mean()  # flatter and lighter
+    assert out["dark"].rgb.mean() < rgb.mean() < out["bright"].rgb.mean()
+    g = out["grey"].rgb.astype(int)
+    assert (g[..., 0] == g[..., 1]).all() and (g[..., 1] == g[..., 2]).all()
+    assert np.abs(np.diff(out["blur"].rgb.astype(int), axis=1)).mean() < np.abs(np.diff(rgb.astype(int), axis=1)).mean()
+    assert np.array_equal(weathered(img, "noise").rgb, out["noise"].rgb)  # seeded: runs compare
+    with pytest.raises(ValueError, match="unknown weather"):
+        weathered(img, "fog")
+
+
+@pytest.mark.shared_data
+def test_weather_sweep_runs_on_one_photo_per_set():
+    from coastforge.bench.real import det_weather_sweep
+
+    if not realdata.SHARED.is_dir():
+        pytest.skip(f"../shared/data not found at {realdata.SHARED}: "
+                    "real-imagery tests need it beside the repo")
+    r = det_weather_sweep(split="train", limit=1, kinds=("haze", "grey"))
+    assert "marina_p0861" not in r  # evaluation-only: not measured with the training split
+    assert r["kinds"] == ["none", "haze", "grey"]
+    for name in ("ships_aerial", "cars_munich"):
+        rows = r[name]["rows"]
+        assert [x["kind"] for x in rows] == ["none", "haze", "grey"]
+        assert rows[0]["objects"] == rows[1]["objects"] == rows[2]["objects"] > 0
+        for x in rows:
+            assert 0 <= x["matched"] <= min(x["objects"], x["preds"])
+        assert rows[0]["recall"] > 0.5  # the photo as it is: most objects found
+    with pytest.raises(ValueError, match="unknown weather"):
+        det_weather_sweep(split="train", limit=1, kinds=("fog",))

@@ -1,6 +1,6 @@
 """Real-photograph benchmark (DESIGN.md §5 "Real photographs"): ``python -m coastforge.bench.real
 [--only seg|det] [--split all|train|val] [--limit N] [--segment-backend B] [--detect-backend B]
-[--with-classmap] [--gsd-sweep] [--preset P] [--set KEY=VALUE] [--json PATH] [--verbose]``.
+[--with-classmap] [--gsd-sweep] [--weather-sweep] [--preset P] [--set KEY=VALUE] [--json PATH] [--verbose]``.
 
 Segmentation: ``real/landcover_dubai`` at a nominal 0.6 m/px, water IoU and a coarse mIoU (water / paved /
 vegetation / bare; building and unlabeled ignored, a rocks prediction is wrong everywhere); the DOTA marina
@@ -13,7 +13,9 @@ one-to-one by Hungarian assignment on centre distance. DOTA marina (oriented lab
 oriented label boxes, orientation RMSE over its pairs, ``bench.detection``'s rule (gate = half the labelled
 length) beside it, harbor structures hit by a pier box. ``--gsd-sweep`` measures again on the same photos
 averaged down 2, 3 and 5 times (cars_munich 0.26-0.65 m/px, the DOTA marina 0.4-1 m/px): the range the
-detector is meant for, which no real set covers by itself.
+detector is meant for, which no real set covers by itself. ``--weather-sweep`` measures again on the same
+photos (ships_aerial too) under haze, under- and over-exposure, noise, no colour, blur and JPEG at fixed
+strengths (``weathered``): the looks a user's picture may have that the sets do not.
 
 Train and validation images (``coastforge.realdata``'s fixed split) are always reported apart; the DOTA
 marina is evaluation-only (never trained on) and is measured unless ``--split train``. Backends default to
@@ -84,6 +86,10 @@ def _select(items: list, split: str, limit: int | None, is_val: Callable[[Any], 
     for k in range(max(len(train), len(val))):
         out += [lst[k] for lst in (train, val) if k < len(lst)]
     return out[:max(0, int(limit))]
+
+
+def _split(item) -> str:
+    return "val" if item.val else "train"
 
 
 def _skipped(name: str, path: Path) -> dict:
@@ -356,50 +362,127 @@ def coarser(image, factor: float):
     return GeoImage(np.ascontiguousarray(rgb), Grid(rgb.shape[1], rgb.shape[0], image.grid.gsd_m * factor))
 
 
-def det_gsd_sweep(config=None, split: str = "all", limit: int | None = None, with_classmap: bool = False,
-                  factors: tuple[float, ...] = SWEEP_FACTORS) -> dict:
-    """Recall and precision on cars_munich (the chosen split) and the DOTA marina (unless ``split`` is
-    train) at their own GSD and averaged down by each of ``factors``; labels scaled alike."""
-    from ..errors import InputError
+# --weather-sweep: the same photos under fixed changes a user's picture may bring (haze, exposure, noise, no
+# colour, softness, compression); fixed strengths, so that runs compare
+WEATHER = ("haze", "dark", "bright", "noise", "grey", "blur", "jpeg")
+
+
+def weathered(image, kind: str):
+    """``image`` under one of ``WEATHER``: haze (30 % of a light grey airlight blended in), dark / bright
+    (gamma 1.6 / 0.6), noise (Gaussian, sigma 8 grey levels, seed 0), grey (luma only), blur (Gaussian,
+    sigma 1.2 px), jpeg (quality 40). Same size and GSD."""
+    import cv2
+
+    x = image.rgb.astype(np.float32)
+    if kind == "haze":
+        x = 0.7 * x + 0.3 * np.array([200.0, 205.0, 210.0], np.float32)
+    elif kind in ("dark", "bright"):
+        x = 255.0 * (x / 255.0) ** (1.6 if kind == "dark" else 0.6)
+    elif kind == "noise":
+        x = x + np.random.default_rng(0).normal(0.0, 8.0, x.shape).astype(np.float32)
+    elif kind == "grey":
+        x = np.repeat(x @ np.array([0.299, 0.587, 0.114], np.float32), 3).reshape(x.shape)
+    elif kind == "blur":
+        x = cv2.GaussianBlur(x, (0, 0), 1.2)
+    elif kind == "jpeg":
+        _ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(image.rgb[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, 40])
+        x = cv2.imdecode(buf, cv2.IMREAD_COLOR)[:, :, ::-1].astype(np.float32)
+    else:
+        raise ValueError(f"unknown weather {kind!r}; one of {', '.join(WEATHER)}")
+    return dataclasses.replace(image, rgb=np.ascontiguousarray(np.clip(np.round(x), 0, 255).astype(np.uint8)))
+
+
+def _sweep_photos(cfg, split: str, limit: int | None, with_ships: bool) -> tuple[list, dict]:
+    """(name, category, [(image, truth, oriented, split)]) per real set a sweep measures, and skip notes:
+    ships_aerial (when ``with_ships``) and cars_munich of ``split``, the DOTA marina (split "eval") unless
+    ``split`` is train."""
     from ..io import read_image
     from .detection import read_dota_yolo
 
-    cfg = config or default_config()
-    t0 = time.perf_counter()
-    out: dict = {"factors": [1.0, *factors]}
-    sets = []
+    sets, skipped = [], {}
+    if with_ships:
+        items = [it for it in rd.ships_items() if len(it.boxes) >= MIN_SHIP_LABELS]
+        if items:
+            sets.append(("ships_aerial", "boat", [
+                (read_image(it.path, gsd_m=rd.ships_gsd(it.boxes), config=cfg.io), it.boxes, False, _split(it))
+                for it in _select(items, split, limit, lambda it: it.val)]))
+        else:
+            skipped["ships_aerial"] = _skipped("ships_aerial", rd.SHARED / "real" / "ships_aerial")
     items = rd.munich_items()
     if items:
         sets.append(("cars_munich", "vehicle", [(read_image(it.path, gsd_m=rd.MUNICH_GSD_M, config=cfg.io),
-                                                  it.boxes, False) for it in _select(items, split, limit,
-                                                                                      lambda it: it.val)]))
+                                                  it.boxes, False, _split(it))
+                                                 for it in _select(items, split, limit, lambda it: it.val)]))
     else:
-        out["cars_munich"] = _skipped("cars_munich", rd.SHARED / "real" / "cars_munich")
+        skipped["cars_munich"] = _skipped("cars_munich", rd.SHARED / "real" / "cars_munich")
     folder = rd.SHARED / "aerial" / "marina_p0861"
     if split != "train" and (folder / "image.jpg").is_file():
         image = read_image(folder / "image.jpg", gsd_m=MARINA_GSD_M, config=cfg.io)
         lab = read_dota_yolo(folder / "labels_yolo_obb.txt", image.grid.width_px, image.grid.height_px)
         quads = np.array([t.corners for c, t in lab if c == "ship"]).reshape(-1, 4, 2)
-        sets.append(("marina_p0861", "boat", [(image, quads, True)]))
+        sets.append(("marina_p0861", "boat", [(image, quads, True, "eval")]))
+    return sets, skipped
+
+
+def _sweep(cfg, sets: list, conditions: list, with_classmap: bool, out: dict) -> dict:
+    """Recall and precision of each set under each condition (key, transform of an image, label scale), one
+    row per condition and split (training and validation photos are never pooled)."""
+    from ..errors import InputError
+
     for name, category, photos in sets:
         rows = []
-        for f in out["factors"]:
-            n_lab = n_pred = n_m = 0
-            for image, truth, oriented in photos:
-                try:
-                    dets, _ = _detect(coarser(image, f), cfg, with_classmap)
-                except InputError as exc:  # a backend refusing that GSD: counted as finding nothing
-                    dets = []
-                    out.setdefault("refused", []).append(f"{name} at {image.grid.gsd_m * f:.2f} m/px: "
-                                                         + str(exc).split(";")[0])
-                xy = np.array([[d.cx_px, d.cy_px] for d in dets if d.category == category]).reshape(-1, 2)
-                pairs = (match_centres_in_quads(xy, truth / f) if oriented
-                         else match_centres_in_boxes(xy, truth / f))
-                n_lab, n_pred, n_m = n_lab + len(truth), n_pred + len(xy), n_m + len(pairs)
-            rows.append({"factor": f, "gsd_m": round(photos[0][0].grid.gsd_m * f, 3), "objects": n_lab,
-                         "preds": n_pred, "matched": n_m, "recall": _ratio(n_m, n_lab),
-                         "precision": _ratio(n_m, n_pred)})
+        for key, transform, scale in conditions:
+            for sp in dict.fromkeys(p[3] for p in photos):
+                n_lab = n_pred = n_m = 0
+                for image, truth, oriented, _ in (p for p in photos if p[3] == sp):
+                    seen = transform(image)
+                    try:
+                        dets, _ = _detect(seen, cfg, with_classmap)
+                    except InputError as exc:  # a backend refusing that GSD: counted as finding nothing
+                        dets = []
+                        out.setdefault("refused", []).append(f"{name} at {seen.grid.gsd_m:.2f} m/px: "
+                                                             + str(exc).split(";")[0])
+                    xy = np.array([[d.cx_px, d.cy_px] for d in dets if d.category == category]).reshape(-1, 2)
+                    pairs = (match_centres_in_quads(xy, truth * scale) if oriented
+                             else match_centres_in_boxes(xy, truth * scale))
+                    n_lab, n_pred, n_m = n_lab + len(truth), n_pred + len(xy), n_m + len(pairs)
+                rows.append({**key, "split": sp, "objects": n_lab, "preds": n_pred, "matched": n_m,
+                             "recall": _ratio(n_m, n_lab), "precision": _ratio(n_m, n_pred)})
         out[name] = {"set": name, "category": category, "images": len(photos), "rows": rows}
+    return out
+
+
+def det_weather_sweep(config=None, split: str = "all", limit: int | None = None, with_classmap: bool = False,
+                      kinds: tuple[str, ...] = WEATHER) -> dict:
+    """Recall and precision on ships_aerial and cars_munich (the chosen split) and the DOTA marina (unless
+    ``split`` is train) as they are and under each of ``kinds`` (``weathered``)."""
+    for k in kinds:
+        if k not in WEATHER:
+            raise ValueError(f"unknown weather {k!r}; one of {', '.join(WEATHER)}")
+    cfg = config or default_config()
+    t0 = time.perf_counter()
+    sets, skipped = _sweep_photos(cfg, split, limit, with_ships=True)
+    out: dict = {"kinds": ["none", *kinds], **skipped}
+    conditions = [({"kind": "none"}, lambda im: im, 1.0)]
+    conditions += [({"kind": k}, lambda im, k=k: weathered(im, k), 1.0) for k in kinds]
+    _sweep(cfg, sets, conditions, with_classmap, out)
+    out["seconds"] = round(time.perf_counter() - t0, 2)
+    return out
+
+
+def det_gsd_sweep(config=None, split: str = "all", limit: int | None = None, with_classmap: bool = False,
+                  factors: tuple[float, ...] = SWEEP_FACTORS) -> dict:
+    """Recall and precision on cars_munich (the chosen split) and the DOTA marina (unless ``split`` is
+    train) at their own GSD and averaged down by each of ``factors``; labels scaled alike."""
+    cfg = config or default_config()
+    t0 = time.perf_counter()
+    sets, skipped = _sweep_photos(cfg, split, limit, with_ships=False)
+    out: dict = {"factors": [1.0, *factors], **skipped}
+    conditions = [({"factor": f, "gsd_m": None}, lambda im, f=f: coarser(im, f), 1.0 / f) for f in out["factors"]]
+    _sweep(cfg, sets, conditions, with_classmap, out)
+    for name, _category, photos in sets:
+        for row in out[name]["rows"]:
+            row["gsd_m"] = round(next(p[0] for p in photos if p[3] == row["split"]).grid.gsd_m * row["factor"], 3)
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 
@@ -452,21 +535,32 @@ def print_det_boxes(r: dict, verbose: bool = False) -> None:
     print("  worst: " + ", ".join(f"{w['name']} {_f(w['recall'], 2)}" for w in r["worst"]))
 
 
-def print_gsd_sweep(r: dict) -> None:
-    print(f"GSD sweep (the photos averaged down {', '.join(f'{f:g}x' for f in r['factors'][1:])}): "
-          f"{r['seconds']:.1f} s")
-    for name in ("cars_munich", "marina_p0861"):
+def _print_sweep(r: dict, names: tuple[str, ...], cell: Callable[[dict], str]) -> None:
+    for name in names:
         s = r.get(name)
         if s is None:
             continue
         if "skipped" in s:
             print(f"  skipped: {name}: {s['skipped']}")
             continue
-        cells = ", ".join(f"{x['gsd_m']:.2f} m/px {_f(x['recall'])} / {_f(x['precision'])}" for x in s["rows"])
-        n = s["images"]
-        print(f"  {name} ({s['category']}, {n} image{'s' if n != 1 else ''}), recall / prec: {cells}")
+        for sp in dict.fromkeys(x["split"] for x in s["rows"]):
+            rows = [x for x in s["rows"] if x["split"] == sp]
+            cells = ", ".join(f"{cell(x)} {_f(x['recall'])} / {_f(x['precision'])}" for x in rows)
+            print(f"  {name} {sp} ({s['category']}, {rows[0]['objects']} objects), recall / prec: {cells}")
     for why in sorted(set(r.get("refused", []))):
         print(f"  refused: {why}")
+
+
+def print_gsd_sweep(r: dict) -> None:
+    print(f"GSD sweep (the photos averaged down {', '.join(f'{f:g}x' for f in r['factors'][1:])}): "
+          f"{r['seconds']:.1f} s")
+    _print_sweep(r, ("cars_munich", "marina_p0861"), lambda x: f"{x['gsd_m']:.2f} m/px")
+
+
+def print_weather_sweep(r: dict) -> None:
+    print(f"weather sweep (the photos under {', '.join(r['kinds'][1:])}; bench.real.weathered): "
+          f"{r['seconds']:.1f} s")
+    _print_sweep(r, ("ships_aerial", "cars_munich", "marina_p0861"), lambda x: x["kind"])
 
 
 def print_det_marina(r: dict) -> None:
@@ -507,6 +601,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="segment first and detect with the class map, as generate does")
     ap.add_argument("--gsd-sweep", action="store_true",
                     help="detection again on the photos averaged down 2, 3 and 5 times (cars_munich, DOTA marina)")
+    ap.add_argument("--weather-sweep", action="store_true",
+                    help="detection again on the photos under haze, exposure, noise, no colour, blur and JPEG "
+                         "(ships_aerial, cars_munich, DOTA marina)")
     ap.add_argument("--split", choices=("all", "train", "val"), default="all")
     ap.add_argument("--limit", type=int, default=None, help="at most N images per set (quick runs)")
     ap.add_argument("--preset", default="default")
@@ -546,6 +643,9 @@ def main(argv: list[str] | None = None) -> int:
         if a.gsd_sweep:
             det["gsd_sweep"] = det_gsd_sweep(cfg, a.split, a.limit, a.with_classmap)
             print_gsd_sweep(det["gsd_sweep"])
+        if a.weather_sweep:
+            det["weather_sweep"] = det_weather_sweep(cfg, a.split, a.limit, a.with_classmap)
+            print_weather_sweep(det["weather_sweep"])
         det["seconds"] = round(time.perf_counter() - t0, 2)
         print(f"detection part: {det['seconds']:.1f} s")
         results["det"] = det
