@@ -98,6 +98,30 @@ def test_coarse_source_softens_a_crop_as_a_coarser_photo_would():
     assert not np.array_equal(a, b)
 
 
+def test_weather_draws_each_of_its_four_looks():
+    """``train_detector --weather-p``: each draw is haze (contrast shrunk alike in every channel), hard exposure (mean moved), heavy
+    noise (a flat patch gets texture) or no colour (equal channels); the size and type stay."""
+    from coastforge.train.train_detector import weather
+
+    img = np.full((48, 48, 3), (40, 90, 120), np.uint8)  # flat dark water
+    img[:, 24:] = (200, 200, 190)  # a white hull
+    seen = {"haze": 0, "exposure": 0, "noise": 0, "grey": 0}
+    for seed in range(40):
+        out = weather(img, np.random.default_rng(seed))
+        assert out.shape == img.shape and out.dtype == np.uint8
+        o = out.astype(int)
+        if o[:, :24].std(axis=(0, 1)).max() > 3:
+            seen["noise"] += 1
+        elif (o[..., 0] == o[..., 1]).all() and (o[..., 1] == o[..., 2]).all():
+            seen["grey"] += 1
+        elif np.ptp(slope := (o[0, 30] - o[0, 0]) / (img[0, 30].astype(int) - img[0, 0])) < 0.05 and slope[0] < 0.95:
+            seen["haze"] += 1  # a blend towards one light colour: every channel's contrast shrinks alike
+        else:
+            assert abs(o.mean() - img.mean()) > 3  # exposure: the mean moved
+            seen["exposure"] += 1
+    assert all(n > 3 for n in seen.values()), seen
+
+
 def test_a_flat_margin_keeps_objects_the_picture_cuts_whole():
     """``train_detector --blank-p``: a strip along one side of the crop is painted flat; a boat still 30 % or
     more visible keeps its whole box (centre under the strip, a peak there), one hidden more goes; the rest
