@@ -249,7 +249,7 @@ def _det_boxes(name: str, items: list, gsd_of: Callable[[Any], float], config, w
     rows = []
     for it in items:
         gsd = gsd_of(it)
-        row = {"name": it.name, "split": "val" if it.val else "train", "gsd_m": round(gsd, 4),
+        row = {"name": it.name, "split": _split(it), "gsd_m": round(gsd, 4),
                "labels": int(len(it.boxes))}
         image = read_image(it.path, gsd_m=gsd, config=cfg.io)
         try:
@@ -367,12 +367,18 @@ def coarser(image, factor: float):
 WEATHER = ("haze", "dark", "bright", "noise", "grey", "blur", "jpeg")
 
 
+def _check_weather(kind: str) -> None:
+    if kind not in WEATHER:
+        raise ValueError(f"unknown weather {kind!r}; one of {', '.join(WEATHER)}")
+
+
 def weathered(image, kind: str):
     """``image`` under one of ``WEATHER``: haze (30 % of a light grey airlight blended in), dark / bright
     (gamma 1.6 / 0.6), noise (Gaussian, sigma 8 grey levels, seed 0), grey (luma only), blur (Gaussian,
     sigma 1.2 px), jpeg (quality 40). Same size and GSD."""
     import cv2
 
+    _check_weather(kind)
     x = image.rgb.astype(np.float32)
     if kind == "haze":
         x = 0.7 * x + 0.3 * np.array([200.0, 205.0, 210.0], np.float32)
@@ -384,11 +390,9 @@ def weathered(image, kind: str):
         x = np.repeat(x @ np.array([0.299, 0.587, 0.114], np.float32), 3).reshape(x.shape)
     elif kind == "blur":
         x = cv2.GaussianBlur(x, (0, 0), 1.2)
-    elif kind == "jpeg":
+    else:  # jpeg
         _ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(image.rgb[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, 40])
         x = cv2.imdecode(buf, cv2.IMREAD_COLOR)[:, :, ::-1].astype(np.float32)
-    else:
-        raise ValueError(f"unknown weather {kind!r}; one of {', '.join(WEATHER)}")
     return dataclasses.replace(image, rgb=np.ascontiguousarray(np.clip(np.round(x), 0, 255).astype(np.uint8)))
 
 
@@ -426,16 +430,22 @@ def _sweep_photos(cfg, split: str, limit: int | None, with_ships: bool) -> tuple
 
 def _sweep(cfg, sets: list, conditions: list, with_classmap: bool, out: dict) -> dict:
     """Recall and precision of each set under each condition (key, transform of an image, label scale), one
-    row per condition and split (training and validation photos are never pooled)."""
+    row per condition and split (training and validation photos are never pooled), with the median GSD the
+    detector saw."""
     from ..errors import InputError
 
     for name, category, photos in sets:
+        by_split: dict[str, list] = {}
+        for p in photos:
+            by_split.setdefault(p[3], []).append(p)
         rows = []
         for key, transform, scale in conditions:
-            for sp in dict.fromkeys(p[3] for p in photos):
+            for sp, group in by_split.items():
                 n_lab = n_pred = n_m = 0
-                for image, truth, oriented, _ in (p for p in photos if p[3] == sp):
+                gsds = []
+                for image, truth, oriented, _ in group:
                     seen = transform(image)
+                    gsds.append(seen.grid.gsd_m)
                     try:
                         dets, _ = _detect(seen, cfg, with_classmap)
                     except InputError as exc:  # a backend refusing that GSD: counted as finding nothing
@@ -446,8 +456,9 @@ def _sweep(cfg, sets: list, conditions: list, with_classmap: bool, out: dict) ->
                     pairs = (match_centres_in_quads(xy, truth * scale) if oriented
                              else match_centres_in_boxes(xy, truth * scale))
                     n_lab, n_pred, n_m = n_lab + len(truth), n_pred + len(xy), n_m + len(pairs)
-                rows.append({**key, "split": sp, "objects": n_lab, "preds": n_pred, "matched": n_m,
-                             "recall": _ratio(n_m, n_lab), "precision": _ratio(n_m, n_pred)})
+                rows.append({**key, "gsd_m": round(float(np.median(gsds)), 3), "split": sp, "objects": n_lab,
+                             "preds": n_pred, "matched": n_m, "recall": _ratio(n_m, n_lab),
+                             "precision": _ratio(n_m, n_pred)})
         out[name] = {"set": name, "category": category, "images": len(photos), "rows": rows}
     return out
 
@@ -456,9 +467,8 @@ def det_weather_sweep(config=None, split: str = "all", limit: int | None = None,
                       kinds: tuple[str, ...] = WEATHER) -> dict:
     """Recall and precision on ships_aerial and cars_munich (the chosen split) and the DOTA marina (unless
     ``split`` is train) as they are and under each of ``kinds`` (``weathered``)."""
-    for k in kinds:
-        if k not in WEATHER:
-            raise ValueError(f"unknown weather {k!r}; one of {', '.join(WEATHER)}")
+    for k in kinds:  # before the photos are read
+        _check_weather(k)
     cfg = config or default_config()
     t0 = time.perf_counter()
     sets, skipped = _sweep_photos(cfg, split, limit, with_ships=True)
@@ -478,11 +488,8 @@ def det_gsd_sweep(config=None, split: str = "all", limit: int | None = None, wit
     t0 = time.perf_counter()
     sets, skipped = _sweep_photos(cfg, split, limit, with_ships=False)
     out: dict = {"factors": [1.0, *factors], **skipped}
-    conditions = [({"factor": f, "gsd_m": None}, lambda im, f=f: coarser(im, f), 1.0 / f) for f in out["factors"]]
+    conditions = [({"factor": f}, lambda im, f=f: coarser(im, f), 1.0 / f) for f in out["factors"]]
     _sweep(cfg, sets, conditions, with_classmap, out)
-    for name, _category, photos in sets:
-        for row in out[name]["rows"]:
-            row["gsd_m"] = round(next(p[0] for p in photos if p[3] == row["split"]).grid.gsd_m * row["factor"], 3)
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 
